@@ -1,0 +1,394 @@
+// Mesh input and repair. The only file of the library that includes assimp.
+#include "bodyfit/mesh_io.h"
+
+#include "bodyfit/errors.h"
+
+#include <Eigen/Geometry>
+#include <assimp/Importer.hpp>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <fstream>
+#include <numeric>
+#include <unordered_map>
+
+namespace bodyfit
+{
+
+const char* toString(UpAxis up)
+{
+	return up == UpAxis::Y ? "+y" : "+z";
+}
+
+const char* toString(FitStatus status)
+{
+	switch (status)
+	{
+	case FitStatus::Ok: return "ok";
+	case FitStatus::TooFewPoints: return "too-few-points";
+	case FitStatus::Degenerate: return "degenerate";
+	case FitStatus::NotConverged: return "not-converged";
+	case FitStatus::NumericalIssue: return "numerical-issue";
+	}
+	return "unknown";
+}
+
+namespace
+{
+
+struct UnionFind
+{
+	std::vector<int> parent;
+	explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+	int find(int a)
+	{
+		while (parent[a] != a)
+		{
+			parent[a] = parent[parent[a]];
+			a = parent[a];
+		}
+		return a;
+	}
+	void unite(int a, int b)
+	{
+		a = find(a);
+		b = find(b);
+		if (a != b)
+			parent[std::max(a, b)] = std::min(a, b); // deterministic: the smaller index is the root
+	}
+};
+
+/// Keep only the listed vertices/faces, renumbering vertices in their original order.
+TriMesh extract(const TriMesh& m, const std::vector<char>& keepVertex)
+{
+	std::vector<int> newIndex(m.V.rows(), -1);
+	int nv = 0;
+	for (int i = 0; i < m.V.rows(); ++i)
+		if (keepVertex[i])
+			newIndex[i] = nv++;
+	TriMesh out;
+	out.V.resize(nv, 3);
+	for (int i = 0; i < m.V.rows(); ++i)
+		if (newIndex[i] >= 0)
+			out.V.row(newIndex[i]) = m.V.row(i);
+	int nf = 0;
+	for (int f = 0; f < m.F.rows(); ++f)
+		nf += keepVertex[m.F(f, 0)] ? 1 : 0;
+	out.F.resize(nf, 3);
+	nf = 0;
+	for (int f = 0; f < m.F.rows(); ++f)
+		if (keepVertex[m.F(f, 0)])
+		{
+			for (int k = 0; k < 3; ++k)
+				out.F(nf, k) = newIndex[m.F(f, k)];
+			++nf;
+		}
+	return out;
+}
+
+double bboxDiagonal(const Eigen::MatrixX3d& V)
+{
+	if (V.rows() == 0)
+		return 0.0;
+	return (V.colwise().maxCoeff() - V.colwise().minCoeff()).norm();
+}
+
+} // namespace
+
+void requireUsable(const TriMesh& mesh, const std::string& name)
+{
+	if (mesh.F.rows() == 0)
+		throw InvalidInputError(name + ": mesh has no faces");
+	if (!mesh.V.allFinite())
+	{
+		for (int i = 0; i < mesh.V.rows(); ++i)
+			if (!mesh.V.row(i).allFinite())
+				throw InvalidInputError(name + ": vertex " + std::to_string(i) + " has a non-finite coordinate");
+	}
+	if (mesh.F.minCoeff() < 0 || mesh.F.maxCoeff() >= mesh.V.rows())
+		throw InvalidInputError(name + ": face index out of range");
+	// At least 4 distinct points, and not all on one plane within the weld tolerance (volume needed by MVEE).
+	const double tol = std::max(1e-6 * bboxDiagonal(mesh.V), 1e-12);
+	int distinct = 0;
+	std::vector<Eigen::Vector3d> seen;
+	for (int i = 0; i < mesh.V.rows() && distinct < 4; ++i)
+	{
+		const Eigen::Vector3d p = mesh.V.row(i);
+		bool isNew = true;
+		for (const auto& s : seen)
+			isNew = isNew && (p - s).norm() > tol;
+		if (isNew)
+		{
+			seen.push_back(p);
+			++distinct;
+		}
+	}
+	if (distinct < 4)
+		throw InvalidInputError(name + ": fewer than 4 distinct points (" + std::to_string(distinct) + ")");
+}
+
+std::vector<int> connectedComponents(const TriMesh& mesh, int* count)
+{
+	const int n = int(mesh.V.rows());
+	UnionFind uf(n);
+	for (int f = 0; f < mesh.F.rows(); ++f)
+	{
+		uf.unite(mesh.F(f, 0), mesh.F(f, 1));
+		uf.unite(mesh.F(f, 1), mesh.F(f, 2));
+	}
+	std::vector<int> root(n), size(n, 0);
+	for (int i = 0; i < n; ++i)
+	{
+		root[i] = uf.find(i);
+		++size[root[i]];
+	}
+	// Order components by size (descending), ties by smallest vertex index: deterministic.
+	std::vector<int> roots;
+	for (int i = 0; i < n; ++i)
+		if (root[i] == i)
+			roots.push_back(i);
+	std::stable_sort(roots.begin(), roots.end(), [&](int a, int b) { return size[a] > size[b]; });
+	std::vector<int> id(n, -1), rootId(n, -1);
+	for (int k = 0; k < int(roots.size()); ++k)
+		rootId[roots[k]] = k;
+	for (int i = 0; i < n; ++i)
+		id[i] = rootId[root[i]];
+	if (count)
+		*count = int(roots.size());
+	return id;
+}
+
+LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const std::string& name)
+{
+	if (!(options.scale > 0.0) || !std::isfinite(options.scale))
+		throw InvalidInputError(name + ": scale must be a positive finite number");
+	LoadedMesh out;
+	MeshReport& r = out.report;
+	r.path = name;
+	r.fileVertices = int(input.V.rows());
+	r.fileFaces = int(input.F.rows());
+	r.up = options.up;
+	r.scale = options.scale;
+
+	if (input.V.rows() == 0 || input.F.rows() == 0)
+		throw InvalidInputError(name + ": mesh is empty (" + std::to_string(input.V.rows()) + " vertices, " +
+			std::to_string(input.F.rows()) + " faces)");
+	for (int i = 0; i < input.V.rows(); ++i)
+		if (!input.V.row(i).allFinite())
+			throw InvalidInputError(name + ": vertex " + std::to_string(i) + " has a non-finite coordinate");
+	if (input.F.minCoeff() < 0 || input.F.maxCoeff() >= input.V.rows())
+		throw InvalidInputError(name + ": face index out of range");
+
+	// Units and up axis: explicit options only, never guessed.
+	Eigen::MatrixX3d V = input.V * options.scale;
+	if (options.up == UpAxis::Z)
+	{
+		// (x, y, z) -> (x, z, -y): +z becomes +y, right-handed.
+		Eigen::MatrixX3d W(V.rows(), 3);
+		W.col(0) = V.col(0);
+		W.col(1) = V.col(2);
+		W.col(2) = -V.col(1);
+		V = W;
+	}
+
+	// Weld: hash points on a grid of cell size tol, compare against the 27 neighbouring cells.
+	const double diag = bboxDiagonal(V);
+	const double tol = std::max(options.relativeWeldTolerance * diag, 1e-12);
+	const Eigen::RowVector3d lo = V.colwise().minCoeff();
+	auto cellOf = [&](const Eigen::RowVector3d& p) {
+		const Eigen::RowVector3d c = ((p - lo) / tol).array().floor();
+		return Eigen::Vector3i(int64_t(c.x()) & 0x1fffff, int64_t(c.y()) & 0x1fffff, int64_t(c.z()) & 0x1fffff);
+	};
+	auto key = [](const Eigen::Vector3i& c) {
+		return (uint64_t(uint32_t(c.x())) << 42) | (uint64_t(uint32_t(c.y())) << 21) | uint64_t(uint32_t(c.z()));
+	};
+	std::unordered_map<uint64_t, std::vector<int>> grid;
+	grid.reserve(size_t(V.rows()) * 2);
+	std::vector<int> remap(V.rows());
+	std::vector<int> representatives;
+	for (int i = 0; i < V.rows(); ++i)
+	{
+		const Eigen::Vector3i c = cellOf(V.row(i));
+		int found = -1;
+		for (int dx = -1; dx <= 1 && found < 0; ++dx)
+			for (int dy = -1; dy <= 1 && found < 0; ++dy)
+				for (int dz = -1; dz <= 1 && found < 0; ++dz)
+				{
+					auto it = grid.find(key(Eigen::Vector3i(c.x() + dx, c.y() + dy, c.z() + dz)));
+					if (it == grid.end())
+						continue;
+					for (int j : it->second)
+						if ((V.row(representatives[j]) - V.row(i)).norm() <= tol)
+						{
+							found = j;
+							break;
+						}
+				}
+		if (found < 0)
+		{
+			found = int(representatives.size());
+			representatives.push_back(i);
+			grid[key(c)].push_back(found);
+		}
+		remap[i] = found;
+	}
+	r.weldedVertices = int(V.rows()) - int(representatives.size());
+
+	TriMesh welded;
+	welded.V.resize(Eigen::Index(representatives.size()), 3);
+	for (int j = 0; j < int(representatives.size()); ++j)
+		welded.V.row(j) = V.row(representatives[j]);
+
+	// Degenerate faces: repeated indices after welding, or (numerically) zero area.
+	const double minDoubleArea = 1e-14 * diag * diag;
+	std::vector<Eigen::Vector3i> faces;
+	faces.reserve(size_t(input.F.rows()));
+	for (int f = 0; f < input.F.rows(); ++f)
+	{
+		const Eigen::Vector3i t(remap[input.F(f, 0)], remap[input.F(f, 1)], remap[input.F(f, 2)]);
+		if (t.x() == t.y() || t.y() == t.z() || t.x() == t.z())
+		{
+			++r.degenerateFaces;
+			continue;
+		}
+		const Eigen::Vector3d a = welded.V.row(t.x()), b = welded.V.row(t.y()), c = welded.V.row(t.z());
+		if ((b - a).cross(c - a).norm() <= minDoubleArea)
+		{
+			++r.degenerateFaces;
+			continue;
+		}
+		faces.push_back(t);
+	}
+	if (faces.empty())
+		throw InvalidInputError(name + ": every face is degenerate (zero area)");
+	welded.F.resize(Eigen::Index(faces.size()), 3);
+	for (size_t f = 0; f < faces.size(); ++f)
+		welded.F.row(Eigen::Index(f)) = faces[f].transpose();
+
+	// Unreferenced vertices are dropped (they would distort the fit and the height).
+	std::vector<char> used(welded.V.rows(), 0);
+	for (int f = 0; f < welded.F.rows(); ++f)
+		for (int k = 0; k < 3; ++k)
+			used[welded.F(f, k)] = 1;
+	r.unreferencedVertices = int(std::count(used.begin(), used.end(), 0));
+	out.full = extract(welded, used);
+
+	int count = 0;
+	const std::vector<int> comp = connectedComponents(out.full, &count);
+	r.components = count;
+	std::vector<char> inLargest(comp.size());
+	for (size_t i = 0; i < comp.size(); ++i)
+		inLargest[i] = comp[i] == 0;
+	out.mesh = count > 1 ? extract(out.full, inLargest) : out.full;
+	r.droppedComponentVertices = int(out.full.V.rows() - out.mesh.V.rows());
+
+	requireUsable(out.mesh, name);
+	r.bboxDiagonal = bboxDiagonal(out.mesh.V);
+	r.height = out.mesh.V.col(1).maxCoeff() - out.mesh.V.col(1).minCoeff();
+	return out;
+}
+
+LoadedMesh loadTriMesh(const std::string& path, const LoadOptions& options)
+{
+	{
+		std::ifstream probe(path, std::ios::binary);
+		if (!probe)
+			throw MeshLoadError(path + ": cannot open file");
+		probe.seekg(0, std::ios::end);
+		if (probe.tellg() <= 0)
+			throw MeshLoadError(path + ": file is empty");
+	}
+	Assimp::Importer importer;
+	// Points and lines are removed; we only want triangles. Node transforms are baked (glTF, FBX).
+	importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+	const aiScene* scene = importer.ReadFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices |
+		aiProcess_SortByPType);
+	if (scene == nullptr)
+	{
+		std::string why = importer.GetErrorString();
+		std::replace(why.begin(), why.end(), '\n', ' ');
+		throw MeshLoadError(path + ": cannot read mesh: " + why);
+	}
+	if ((scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0 || scene->mNumMeshes == 0)
+		throw MeshLoadError(path + ": file contains no triangle mesh");
+
+	size_t nv = 0, nf = 0;
+	for (unsigned m = 0; m < scene->mNumMeshes; ++m)
+	{
+		const aiMesh* mesh = scene->mMeshes[m];
+		nv += mesh->mNumVertices;
+		for (unsigned f = 0; f < mesh->mNumFaces; ++f)
+			nf += mesh->mFaces[f].mNumIndices == 3 ? 1 : 0;
+	}
+	if (nf == 0)
+		throw MeshLoadError(path + ": file contains no triangles");
+
+	TriMesh raw;
+	raw.V.resize(Eigen::Index(nv), 3);
+	raw.F.resize(Eigen::Index(nf), 3);
+	size_t vBase = 0, fi = 0;
+	for (unsigned m = 0; m < scene->mNumMeshes; ++m)
+	{
+		const aiMesh* mesh = scene->mMeshes[m];
+		for (unsigned i = 0; i < mesh->mNumVertices; ++i)
+			raw.V.row(Eigen::Index(vBase + i)) << mesh->mVertices[i].x, mesh->mVertices[i].y, mesh->mVertices[i].z;
+		for (unsigned f = 0; f < mesh->mNumFaces; ++f)
+		{
+			const aiFace& face = mesh->mFaces[f];
+			if (face.mNumIndices != 3)
+				continue;
+			for (int k = 0; k < 3; ++k)
+				raw.F(Eigen::Index(fi), k) = int(vBase + face.mIndices[k]);
+			++fi;
+		}
+		vBase += mesh->mNumVertices;
+	}
+	return repairMesh(raw, options, path);
+}
+
+void saveTriMesh(const std::string& path, const TriMesh& mesh, const Eigen::MatrixX3d* colors)
+{
+	const bool ply = path.size() >= 4 && path.compare(path.size() - 4, 4, ".ply") == 0;
+	std::ofstream out(path);
+	if (!out)
+		throw MeshLoadError(path + ": cannot open for writing");
+	out.precision(9);
+	const bool hasColors = colors != nullptr && colors->rows() == mesh.V.rows();
+	auto byte = [](double c) { return int(std::lround(std::clamp(c, 0.0, 1.0) * 255.0)); };
+	if (ply)
+	{
+		out << "ply\nformat ascii 1.0\nelement vertex " << mesh.V.rows() << "\nproperty float x\nproperty float y\n"
+			<< "property float z\n";
+		if (hasColors)
+			out << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+		out << "element face " << mesh.F.rows() << "\nproperty list uchar int vertex_indices\nend_header\n";
+		for (int i = 0; i < mesh.V.rows(); ++i)
+		{
+			out << mesh.V(i, 0) << ' ' << mesh.V(i, 1) << ' ' << mesh.V(i, 2);
+			if (hasColors)
+				out << ' ' << byte((*colors)(i, 0)) << ' ' << byte((*colors)(i, 1)) << ' ' << byte((*colors)(i, 2));
+			out << '\n';
+		}
+		for (int f = 0; f < mesh.F.rows(); ++f)
+			out << "3 " << mesh.F(f, 0) << ' ' << mesh.F(f, 1) << ' ' << mesh.F(f, 2) << '\n';
+	}
+	else
+	{
+		for (int i = 0; i < mesh.V.rows(); ++i)
+		{
+			out << "v " << mesh.V(i, 0) << ' ' << mesh.V(i, 1) << ' ' << mesh.V(i, 2);
+			if (hasColors) // the common "v x y z r g b" extension
+				out << ' ' << (*colors)(i, 0) << ' ' << (*colors)(i, 1) << ' ' << (*colors)(i, 2);
+			out << '\n';
+		}
+		for (int f = 0; f < mesh.F.rows(); ++f)
+			out << "f " << mesh.F(f, 0) + 1 << ' ' << mesh.F(f, 1) + 1 << ' ' << mesh.F(f, 2) + 1 << '\n';
+	}
+	if (!out)
+		throw MeshLoadError(path + ": write failed");
+}
+
+} // namespace bodyfit
