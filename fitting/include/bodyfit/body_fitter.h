@@ -1,0 +1,133 @@
+#pragma once
+/// \file body_fitter.h
+/// The fitting pipeline after segmentation: initial clusters per region, pruned bisecting K-means refinement with
+/// MVEEs (paper sec. 3.3, made precise in DESIGN.md sec. 2), and the error report of the result.
+///
+/// Groups. Torso regions form one group: k starts at the number of torso parts present (6 after a successful
+/// segmentation), initialised with the means of those parts. Every other region (head, each limb part, or
+/// Region::Whole for the generic path) is its own group with k = 1.
+///
+/// Refinement loop. Among the ellipsoids whose E_j exceeds their group's threshold mu (mu_torso for the torso group,
+/// mu_limbs for head and limbs; Region::Whole uses mu_torso) and that are not frozen, take the one with the largest
+/// E_j / mu (ties: lower group, then lower cluster index). Replace its centre by the two end points of its longest
+/// axis, run pruned K-means on all points of its group, refit the MVEEs of the clusters whose points changed. The
+/// split is accepted when the worst E_j among the changed clusters is lower than it was before the split (for the
+/// usual case, where only the split ellipsoid and its neighbours change, this is "the group's worst error went
+/// down"); otherwise the group is restored and the ellipsoid frozen. A split that leaves a cluster empty is rejected.
+/// Stops when every ellipsoid meets its threshold or is frozen, at `maxEllipsoids`, or after `maxSplits` attempts.
+/// Termination is guaranteed: every attempt adds an ellipsoid (bounded by the budget) or freezes one.
+///
+/// Deterministic bit for bit: no randomness, ordered containers only, fixed tie rules.
+
+#include "bodyfit/fit_error.h"
+#include "bodyfit/mvee.h"
+#include "bodyfit/segmentation.h"
+
+#include <string>
+#include <vector>
+
+namespace bodyfit
+{
+
+struct BodyFitOptions
+{
+	/// Thresholds on E_j. Fractions of the body height H when `relativeToHeight`, metres otherwise.
+	/// Defaults: 0.6% H (torso) and 0.4% H (head, limbs), about 10 mm and 7 mm on a 1.75 m body (see README).
+	double muTorso = 0.006;
+	double muLimbs = 0.004;
+	bool relativeToHeight = true;
+	/// K-means pruning threshold on the mean centre shift (fraction of H when relativeToHeight, else metres).
+	double sigma = 0.001;
+	int maxEllipsoids = 128;  ///< budget: refinement stops when this many ellipsoids exist (>= number of groups)
+	int maxSplits = 1000;     ///< cap on split attempts (accepted + rejected)
+	int kmeansMaxIterations = 50;
+	/// Minimum MVEE semi-axis as a fraction of H (degenerate clusters: flat patches, < 4 points).
+	double minRadiusFraction = 0.002;
+	double mveeTolerance = 1e-3;
+	/// H used for the relative quantities; <= 0 means the y extent of the mesh.
+	double height = 0.0;
+	/// Compute the true (Eberly) distance statistics of the final ellipsoids (costs ~1 closest-point query/vertex).
+	bool trueDistance = true;
+};
+
+/// One fitted ellipsoid and how well it covers its vertices.
+struct FittedEllipsoid
+{
+	Ellipsoid ellipsoid;
+	Region region = Region::Whole; ///< its group's region; torso clusters take their majority torso part
+	int vertexCount = 0;
+	double radialError = 0.0;      ///< E_j (paper eq. 6), metres
+	double maxRadialError = 0.0;   ///< max |v - v_phi| over its vertices
+	double meanDistance = 0.0;     ///< mean true distance of its vertices to the surface ("air gap")
+	double maxDistance = 0.0;      ///< max true distance
+	FitStatus mveeStatus = FitStatus::Ok;
+};
+
+/// Parameters a fit was made with, in the units of the JSON file (see ellipsoid_io.h).
+struct BodyFitParams
+{
+	double muTorso = 0.0;
+	double muLimbs = 0.0;
+	bool relativeToHeight = true;
+	double sigma = 0.0;
+	int maxEllipsoids = 0;
+	double minRadius = 0.0; ///< metres
+};
+
+struct SourceInfo
+{
+	std::string mesh;  ///< file name of the source mesh (no directory)
+	int vertices = 0;
+	double height = 0.0; ///< metres
+};
+
+struct StageTiming
+{
+	std::string stage; ///< "load", "segmentation", "fitting", ... (JSON key)
+	double ms = 0.0;
+};
+
+enum class RefineStatus
+{
+	Converged,       ///< every ellipsoid meets its threshold
+	Frozen,          ///< thresholds not met by some ellipsoids whose splits did not help (they were frozen)
+	BudgetReached,   ///< maxEllipsoids reached with some ellipsoid above its threshold
+	SplitCapReached, ///< maxSplits attempts used
+};
+const char* toString(RefineStatus status);
+
+/// Result of a fit, and the content of an ellipsoid JSON file.
+struct BodyFit
+{
+	std::vector<FittedEllipsoid> ellipsoids;
+	std::vector<int> vertexEllipsoid; ///< per mesh vertex: index into `ellipsoids` (empty when read from a file)
+	SourceInfo source;
+	BodyFitParams params;
+	std::vector<StageTiming> timings; ///< in pipeline order
+	std::vector<std::string> warnings;
+	RefineStatus status = RefineStatus::Converged;
+	int splitsAccepted = 0;
+	int splitsRejected = 0;
+
+	/// Vertex-weighted mean of E_j (= mean radial error over all fitted vertices), max E_j, and the
+	/// vertex-weighted mean / max of the true distance. Ellipsoids with vertexCount 0 contribute nothing.
+	double meanRadialError() const;
+	double maxRadialError() const;
+	double meanDistance() const;
+	double maxDistance() const;
+	/// Time of `stage` in ms, or 0 when not recorded.
+	double timingMs(const std::string& stage) const;
+	/// Adds or replaces the time of `stage`.
+	void setTiming(const std::string& stage, double ms);
+};
+
+/// Fits ellipsoids to `mesh` given one region label per vertex (Region::Whole everywhere = the generic path).
+/// Records the "fitting" timing plus its parts ("fitting.kmeans", "fitting.mvee", "fitting.error") and, when
+/// options.trueDistance is set, "report" (the closest-point queries).
+/// \throws InvalidInputError when labels.size() != vertex count, the mesh is unusable or options are invalid.
+BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const BodyFitOptions& options = {});
+
+/// Generic path: the whole mesh is one region.
+BodyFit fitBody(const TriMesh& mesh, const BodyFitOptions& options = {});
+
+} // namespace bodyfit

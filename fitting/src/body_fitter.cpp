@@ -1,0 +1,490 @@
+// Pruned bisecting K-means refinement with MVEEs (paper sec. 3.3; DESIGN.md sec. 2). See body_fitter.h.
+#include "bodyfit/body_fitter.h"
+
+#include "bodyfit/errors.h"
+#include "bodyfit/kmeans.h"
+#include "bodyfit/mesh_io.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+namespace bodyfit
+{
+
+const char* toString(RefineStatus status)
+{
+	switch (status)
+	{
+	case RefineStatus::Converged: return "converged";
+	case RefineStatus::Frozen: return "frozen";
+	case RefineStatus::BudgetReached: return "budget-reached";
+	case RefineStatus::SplitCapReached: return "split-cap-reached";
+	}
+	return "unknown";
+}
+
+double BodyFit::meanRadialError() const
+{
+	double sum = 0.0;
+	long long count = 0;
+	for (const FittedEllipsoid& e : ellipsoids)
+	{
+		sum += e.radialError * e.vertexCount;
+		count += e.vertexCount;
+	}
+	return count > 0 ? sum / double(count) : 0.0;
+}
+
+double BodyFit::maxRadialError() const
+{
+	double m = 0.0;
+	for (const FittedEllipsoid& e : ellipsoids)
+		m = std::max(m, e.radialError);
+	return m;
+}
+
+double BodyFit::meanDistance() const
+{
+	double sum = 0.0;
+	long long count = 0;
+	for (const FittedEllipsoid& e : ellipsoids)
+	{
+		sum += e.meanDistance * e.vertexCount;
+		count += e.vertexCount;
+	}
+	return count > 0 ? sum / double(count) : 0.0;
+}
+
+double BodyFit::maxDistance() const
+{
+	double m = 0.0;
+	for (const FittedEllipsoid& e : ellipsoids)
+		m = std::max(m, e.maxDistance);
+	return m;
+}
+
+double BodyFit::timingMs(const std::string& stage) const
+{
+	for (const StageTiming& t : timings)
+		if (t.stage == stage)
+			return t.ms;
+	return 0.0;
+}
+
+void BodyFit::setTiming(const std::string& stage, double ms)
+{
+	for (StageTiming& t : timings)
+		if (t.stage == stage)
+		{
+			t.ms = ms;
+			return;
+		}
+	timings.push_back({stage, ms});
+}
+
+namespace
+{
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t0)
+{
+	return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+struct Cluster
+{
+	std::vector<int> members; ///< indices into the group's points, ascending
+	EllipsoidFit fit;
+	double error = 0.0; ///< E_j
+	bool frozen = false;
+};
+
+/// A set of vertices refined together: the torso (k0 = its parts), or one other region (k0 = 1).
+struct Group
+{
+	Region region = Region::Whole; ///< for the torso group: its first part (clusters get their majority part)
+	bool torso = false;
+	double mu = 0.0;               ///< threshold on E_j, metres
+	std::vector<int> vertices;     ///< mesh vertex indices, ascending
+	Eigen::MatrixX3d points;       ///< their positions
+	Eigen::MatrixX3d centers;      ///< K-means centres, one per cluster
+	std::vector<int> assignment;   ///< cluster of every point
+	std::vector<double> lowerBounds; ///< K-means warm-start bounds for `centers`
+	std::vector<Cluster> clusters;
+};
+
+class Refiner
+{
+public:
+	Refiner(const KMeansOptions& kmeans, const MveeOptions& mvee) : kmeans_(kmeans), mvee_(mvee) {}
+
+	double kmeansMs = 0.0, mveeMs = 0.0, errorMs = 0.0;
+
+	/// Pruned K-means from `initialCenters`, then an MVEE per non-empty cluster (empty ones are dropped).
+	void initialise(Group& g, const Eigen::MatrixX3d& initialCenters)
+	{
+		Clock::time_point t0 = Clock::now();
+		KMeansResult km = kMeans(g.points, initialCenters, kmeans_);
+		kmeansMs += msSince(t0);
+		// Drop empty clusters; removing centres keeps the lower bounds valid (distances to the rest only grow).
+		std::vector<int> remap(std::size_t(initialCenters.rows()), -1);
+		int k = 0;
+		for (std::size_t j = 0; j < remap.size(); ++j)
+			if (km.counts[j] > 0)
+				remap[j] = k++;
+		g.centers.resize(k, 3);
+		for (std::size_t j = 0; j < remap.size(); ++j)
+			if (remap[j] >= 0)
+				g.centers.row(remap[j]) = km.centers.row(Eigen::Index(j));
+		g.assignment = std::move(km.assignment);
+		for (int& a : g.assignment)
+			a = remap[std::size_t(a)];
+		g.lowerBounds = std::move(km.lowerBounds);
+		g.clusters.assign(std::size_t(k), Cluster{});
+		for (std::size_t i = 0; i < g.assignment.size(); ++i)
+			g.clusters[std::size_t(g.assignment[i])].members.push_back(int(i));
+		for (Cluster& c : g.clusters)
+			fitCluster(g, c);
+	}
+
+	/// Bisects cluster w (paper step b-d). Returns false, leaving the group untouched, when the split empties a
+	/// cluster or does not lower the worst error among the clusters it changed.
+	bool trySplit(Group& g, int w)
+	{
+		const int k = int(g.clusters.size());
+		const Ellipsoid& e = g.clusters[std::size_t(w)].fit.ellipsoid;
+		Eigen::Index axis = 0;
+		e.radii.maxCoeff(&axis); // first of equal maxima: deterministic
+		const Eigen::Vector3d halfAxis = e.rotation.col(axis) * e.radii(axis);
+
+		Eigen::MatrixX3d centers(k + 1, 3);
+		centers.topRows(k) = g.centers;
+		centers.row(w) = (e.center + halfAxis).transpose();
+		centers.row(k) = (e.center - halfAxis).transpose();
+		std::vector<bool> moved(std::size_t(k + 1), false);
+		moved[std::size_t(w)] = moved[std::size_t(k)] = true;
+		KMeansWarmStart warm;
+		warm.assignment = &g.assignment;
+		warm.lowerBounds = &g.lowerBounds;
+		warm.moved = &moved;
+
+		Clock::time_point t0 = Clock::now();
+		KMeansResult km = kMeans(g.points, centers, kmeans_, &warm);
+		kmeansMs += msSince(t0);
+		if (km.emptyClusters > 0)
+			return false;
+
+		// Clusters whose point set changed: the split one, the new one, and any that gained or lost points.
+		std::vector<char> dirty(std::size_t(k + 1), 0);
+		dirty[std::size_t(w)] = dirty[std::size_t(k)] = 1;
+		for (std::size_t i = 0; i < km.assignment.size(); ++i)
+			if (km.assignment[i] != g.assignment[i])
+				dirty[std::size_t(g.assignment[i])] = dirty[std::size_t(km.assignment[i])] = 1;
+
+		std::vector<Cluster> fresh(std::size_t(k + 1));
+		for (std::size_t i = 0; i < km.assignment.size(); ++i)
+			if (dirty[std::size_t(km.assignment[i])])
+				fresh[std::size_t(km.assignment[i])].members.push_back(int(i));
+		double oldWorst = 0.0, newWorst = 0.0;
+		for (int j = 0; j <= k; ++j)
+		{
+			if (!dirty[std::size_t(j)])
+				continue;
+			if (j < k)
+				oldWorst = std::max(oldWorst, g.clusters[std::size_t(j)].error);
+			fitCluster(g, fresh[std::size_t(j)]);
+			newWorst = std::max(newWorst, fresh[std::size_t(j)].error);
+		}
+		if (!(newWorst < oldWorst))
+			return false;
+
+		// Accept: commit the new clusters, centres and bounds. Frozen flags of surviving clusters are kept.
+		for (int j = 0; j < k; ++j)
+			if (dirty[std::size_t(j)])
+			{
+				fresh[std::size_t(j)].frozen = g.clusters[std::size_t(j)].frozen;
+				g.clusters[std::size_t(j)] = std::move(fresh[std::size_t(j)]);
+			}
+		g.clusters.push_back(std::move(fresh[std::size_t(k)]));
+		g.centers = km.centers;
+		g.assignment = std::move(km.assignment);
+		g.lowerBounds = std::move(km.lowerBounds);
+		return true;
+	}
+
+private:
+	void fitCluster(const Group& g, Cluster& c)
+	{
+		Clock::time_point t0 = Clock::now();
+		buffer_.resize(Eigen::Index(c.members.size()), 3);
+		for (std::size_t r = 0; r < c.members.size(); ++r)
+			buffer_.row(Eigen::Index(r)) = g.points.row(c.members[r]);
+		c.fit = minimumVolumeEllipsoid(buffer_, mvee_);
+		Clock::time_point t1 = Clock::now();
+		mveeMs += std::chrono::duration<double, std::milli>(t1 - t0).count();
+		c.error = meanRadialError(c.fit.ellipsoid, g.points, c.members);
+		errorMs += msSince(t1);
+	}
+
+	KMeansOptions kmeans_;
+	MveeOptions mvee_;
+	Eigen::MatrixX3d buffer_;
+};
+
+void validate(const TriMesh& mesh, const std::vector<Region>& labels, const BodyFitOptions& o)
+{
+	requireUsable(mesh, "fitBody mesh");
+	if (labels.size() != std::size_t(mesh.vertexCount()))
+		throw InvalidInputError("fitBody: " + std::to_string(labels.size()) + " region labels for " +
+								std::to_string(mesh.vertexCount()) + " vertices");
+	for (Region r : labels)
+		if (int(r) < 0 || int(r) > int(Region::Whole))
+			throw InvalidInputError("fitBody: region label out of range: " + std::to_string(int(r)));
+	auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+	if (!positive(o.muTorso))
+		throw InvalidInputError("fitBody: mu_torso must be finite and > 0");
+	if (!positive(o.muLimbs))
+		throw InvalidInputError("fitBody: mu_limbs must be finite and > 0");
+	if (!(std::isfinite(o.sigma) && o.sigma >= 0.0))
+		throw InvalidInputError("fitBody: sigma must be finite and >= 0");
+	if (o.maxEllipsoids < 1)
+		throw InvalidInputError("fitBody: max ellipsoids must be >= 1");
+	if (o.maxSplits < 0 || o.kmeansMaxIterations < 1)
+		throw InvalidInputError("fitBody: maxSplits must be >= 0 and kmeansMaxIterations >= 1");
+	if (!positive(o.minRadiusFraction) || !positive(o.mveeTolerance))
+		throw InvalidInputError("fitBody: minRadiusFraction and mveeTolerance must be finite and > 0");
+	if (!std::isfinite(o.height))
+		throw InvalidInputError("fitBody: height must be finite");
+}
+
+/// Groups in output order: head, torso, arms, legs (Region order, torso parts merged), whole.
+std::vector<Group> makeGroups(const TriMesh& mesh, const std::vector<Region>& labels, const BodyFitOptions& o,
+							  double scale, std::vector<Eigen::MatrixX3d>& initialCenters)
+{
+	constexpr int kRegions = int(Region::Whole) + 1;
+	std::array<std::vector<int>, kRegions> byRegion;
+	for (std::size_t v = 0; v < labels.size(); ++v)
+		byRegion[std::size_t(labels[v])].push_back(int(v));
+
+	auto mean = [&](const std::vector<int>& verts) {
+		Eigen::RowVector3d s = Eigen::RowVector3d::Zero();
+		for (int v : verts)
+			s += mesh.V.row(v);
+		return Eigen::RowVector3d(s / double(verts.size()));
+	};
+
+	std::vector<Group> groups;
+	initialCenters.clear();
+	bool torsoDone = false;
+	for (int r = 0; r < kRegions; ++r)
+	{
+		const Region region = Region(r);
+		if (byRegion[std::size_t(r)].empty())
+			continue;
+		Group g;
+		g.region = region;
+		if (isTorso(region))
+		{
+			if (torsoDone)
+				continue;
+			torsoDone = true;
+			g.torso = true;
+			std::vector<Eigen::RowVector3d> partMeans;
+			for (int t = r; t < kRegions; ++t)
+				if (isTorso(Region(t)) && !byRegion[std::size_t(t)].empty())
+				{
+					g.vertices.insert(g.vertices.end(), byRegion[std::size_t(t)].begin(), byRegion[std::size_t(t)].end());
+					partMeans.push_back(mean(byRegion[std::size_t(t)]));
+				}
+			std::sort(g.vertices.begin(), g.vertices.end());
+			Eigen::MatrixX3d c(Eigen::Index(partMeans.size()), 3);
+			for (std::size_t j = 0; j < partMeans.size(); ++j)
+				c.row(Eigen::Index(j)) = partMeans[j];
+			initialCenters.push_back(c);
+		}
+		else
+		{
+			g.vertices = byRegion[std::size_t(r)];
+			initialCenters.push_back(mean(g.vertices));
+		}
+		g.mu = (g.torso || region == Region::Whole ? o.muTorso : o.muLimbs) * scale;
+		g.points.resize(Eigen::Index(g.vertices.size()), 3);
+		for (std::size_t i = 0; i < g.vertices.size(); ++i)
+			g.points.row(Eigen::Index(i)) = mesh.V.row(g.vertices[i]);
+		groups.push_back(std::move(g));
+	}
+	return groups;
+}
+
+/// Majority torso part among a torso cluster's vertices (ties: lower Region value).
+Region majorityRegion(const Group& g, const Cluster& c, const std::vector<Region>& labels)
+{
+	std::array<int, int(Region::Whole) + 1> votes{};
+	for (int m : c.members)
+		++votes[std::size_t(labels[std::size_t(g.vertices[std::size_t(m)])])];
+	return Region(int(std::max_element(votes.begin(), votes.end()) - votes.begin()));
+}
+
+} // namespace
+
+BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const BodyFitOptions& options)
+{
+	const Clock::time_point t0 = Clock::now();
+	validate(mesh, labels, options);
+	BodyFit result;
+
+	// Height and the scale of the relative quantities.
+	double height = options.height;
+	if (height <= 0.0)
+		height = mesh.V.col(1).maxCoeff() - mesh.V.col(1).minCoeff();
+	if (!(height > 0.0))
+	{
+		height = (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
+		result.warnings.push_back("mesh has no y extent: using the bounding-box diagonal as the height");
+	}
+	const double scale = options.relativeToHeight ? height : 1.0;
+
+	KMeansOptions kmeans;
+	kmeans.sigma = options.sigma * scale;
+	kmeans.maxIterations = options.kmeansMaxIterations;
+	MveeOptions mvee;
+	mvee.minRadius = options.minRadiusFraction * height;
+	mvee.tolerance = options.mveeTolerance;
+
+	result.source.vertices = mesh.vertexCount();
+	result.source.height = height;
+	result.params.muTorso = options.muTorso;
+	result.params.muLimbs = options.muLimbs;
+	result.params.relativeToHeight = options.relativeToHeight;
+	result.params.sigma = options.sigma;
+	result.params.maxEllipsoids = options.maxEllipsoids;
+	result.params.minRadius = mvee.minRadius;
+
+	// (a) Initial clusters: torso k = number of its parts (means of the parts), every other region k = 1.
+	std::vector<Eigen::MatrixX3d> initialCenters;
+	std::vector<Group> groups = makeGroups(mesh, labels, options, scale, initialCenters);
+	Refiner refiner(kmeans, mvee);
+	for (std::size_t gi = 0; gi < groups.size(); ++gi)
+		refiner.initialise(groups[gi], initialCenters[gi]);
+
+	auto total = [&] {
+		std::size_t n = 0;
+		for (const Group& g : groups)
+			n += g.clusters.size();
+		return int(n);
+	};
+	if (total() > options.maxEllipsoids)
+		result.warnings.push_back("max ellipsoids " + std::to_string(options.maxEllipsoids) + " is below the " +
+								  std::to_string(total()) + " initial ellipsoids of the regions: no refinement");
+
+	// (b)-(e) Refinement: split the worst ellipsoid (relative to its threshold) until all meet their threshold.
+	int attempts = 0;
+	result.status = RefineStatus::Converged;
+	for (;;)
+	{
+		int bestG = -1, bestJ = -1;
+		double bestScore = 1.0;
+		bool anyAbove = false;
+		for (std::size_t gi = 0; gi < groups.size(); ++gi)
+			for (std::size_t j = 0; j < groups[gi].clusters.size(); ++j)
+			{
+				const Cluster& c = groups[gi].clusters[j];
+				const double score = c.error / groups[gi].mu;
+				if (score <= 1.0)
+					continue;
+				anyAbove = true;
+				if (!c.frozen && score > bestScore)
+				{
+					bestScore = score;
+					bestG = int(gi);
+					bestJ = int(j);
+				}
+			}
+		if (bestG < 0)
+		{
+			result.status = anyAbove ? RefineStatus::Frozen : RefineStatus::Converged;
+			break;
+		}
+		if (total() >= options.maxEllipsoids)
+		{
+			result.status = RefineStatus::BudgetReached;
+			break;
+		}
+		if (attempts >= options.maxSplits)
+		{
+			result.status = RefineStatus::SplitCapReached;
+			break;
+		}
+		++attempts;
+		if (refiner.trySplit(groups[std::size_t(bestG)], bestJ))
+			++result.splitsAccepted;
+		else
+		{
+			groups[std::size_t(bestG)].clusters[std::size_t(bestJ)].frozen = true;
+			++result.splitsRejected;
+		}
+	}
+	const double fittingMs = msSince(t0);
+
+	// Report: per-ellipsoid errors (true distances optional), labels, per-vertex ellipsoid.
+	const Clock::time_point tReport = Clock::now();
+	result.vertexEllipsoid.assign(std::size_t(mesh.vertexCount()), -1);
+	int degenerate = 0, notConverged = 0, frozenAbove = 0;
+	for (const Group& g : groups)
+		for (const Cluster& c : g.clusters)
+		{
+			FittedEllipsoid f;
+			f.ellipsoid = c.fit.ellipsoid;
+			f.region = g.torso ? majorityRegion(g, c, labels) : g.region;
+			f.mveeStatus = c.fit.status;
+			const FitError err = fitError(c.fit.ellipsoid, g.points, c.members, options.trueDistance);
+			f.vertexCount = err.vertexCount;
+			f.radialError = c.error;
+			f.maxRadialError = err.radialMax;
+			f.meanDistance = err.distanceMean;
+			f.maxDistance = err.distanceMax;
+			const int index = int(result.ellipsoids.size());
+			for (int m : c.members)
+				result.vertexEllipsoid[std::size_t(g.vertices[std::size_t(m)])] = index;
+			degenerate += (c.fit.status == FitStatus::Degenerate || c.fit.status == FitStatus::TooFewPoints);
+			notConverged += (c.fit.status == FitStatus::NotConverged || c.fit.status == FitStatus::NumericalIssue);
+			frozenAbove += (c.frozen && c.error > g.mu);
+			result.ellipsoids.push_back(f);
+		}
+	const double reportMs = msSince(tReport);
+
+	if (degenerate > 0)
+		result.warnings.push_back(std::to_string(degenerate) +
+								  " ellipsoid(s) fitted to flat or tiny clusters: thin axes floored to " +
+								  std::to_string(mvee.minRadius * 1000.0) + " mm");
+	if (notConverged > 0)
+		result.warnings.push_back(std::to_string(notConverged) +
+								  " MVEE(s) hit the iteration cap (rescaled to enclose their points)");
+	if (result.status == RefineStatus::BudgetReached)
+		result.warnings.push_back("ellipsoid budget of " + std::to_string(options.maxEllipsoids) +
+								  " reached before every ellipsoid met its threshold");
+	if (result.status == RefineStatus::SplitCapReached)
+		result.warnings.push_back("split cap of " + std::to_string(options.maxSplits) + " attempts reached");
+	if (frozenAbove > 0)
+		result.warnings.push_back(std::to_string(frozenAbove) +
+								  " ellipsoid(s) stay above their threshold: splitting them did not lower the error");
+
+	result.setTiming("fitting", fittingMs);
+	result.setTiming("fitting.kmeans", refiner.kmeansMs);
+	result.setTiming("fitting.mvee", refiner.mveeMs);
+	result.setTiming("fitting.error", refiner.errorMs);
+	if (options.trueDistance)
+		result.setTiming("report", reportMs);
+	return result;
+}
+
+BodyFit fitBody(const TriMesh& mesh, const BodyFitOptions& options)
+{
+	return fitBody(mesh, std::vector<Region>(std::size_t(mesh.vertexCount()), Region::Whole), options);
+}
+
+} // namespace bodyfit

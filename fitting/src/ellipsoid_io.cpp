@@ -1,0 +1,447 @@
+// Ellipsoid-set JSON (DESIGN.md sec. 2) and the triangle-mesh export. See ellipsoid_io.h.
+#include "bodyfit/ellipsoid_io.h"
+
+#include "bodyfit/errors.h"
+#include "bodyfit/mesh_io.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+namespace bodyfit
+{
+
+namespace
+{
+
+using Json = nlohmann::ordered_json; // keeps the key order of DESIGN.md when writing and the file's when reading
+
+/// Tolerance on |q| - 1 for a stored quaternion: files are written with round-trip precision, so a unit quaternion
+/// read back has |q| = 1 within a few ulp; 1e-6 still accepts files written by tools that print ~7 digits.
+constexpr double kUnitQuaternionTolerance = 1e-6;
+
+Json vec3(const Eigen::Vector3d& v)
+{
+	return Json::array({v.x(), v.y(), v.z()});
+}
+
+/// Adds `key: value` only for a finite value (NaN = unknown is omitted).
+void putFinite(Json& obj, const char* key, double value)
+{
+	if (std::isfinite(value))
+		obj[key] = value;
+}
+
+/// Validating accessors; every failure names the document and the field.
+class Reader
+{
+public:
+	explicit Reader(std::string name) : name_(std::move(name)) {}
+
+	[[noreturn]] void fail(const std::string& field, const std::string& problem) const
+	{
+		throw FormatError(name_ + ": " + field + ": " + problem);
+	}
+
+	const Json& require(const Json& obj, const char* key, const std::string& prefix) const
+	{
+		const std::string field = prefix.empty() ? std::string(key) : prefix + "." + key;
+		if (!obj.contains(key))
+			fail(field, "missing");
+		return obj[key];
+	}
+
+	double number(const Json& v, const std::string& field) const
+	{
+		if (!v.is_number())
+			fail(field, "must be a number (got " + typeName(v) + ")");
+		const double d = v.get<double>();
+		if (!std::isfinite(d))
+			fail(field, "must be finite");
+		return d;
+	}
+
+	double nonNegative(const Json& v, const std::string& field) const
+	{
+		const double d = number(v, field);
+		if (d < 0.0)
+			fail(field, "must be >= 0 (got " + format(d) + ")");
+		return d;
+	}
+
+	int integer(const Json& v, const std::string& field, int minimum) const
+	{
+		if (!v.is_number_integer())
+			fail(field, "must be an integer (got " + typeName(v) + ")");
+		const long long i = v.get<long long>();
+		if (i < minimum || i > 2147483647LL)
+			fail(field, "must be an integer >= " + std::to_string(minimum) + " (got " + std::to_string(i) + ")");
+		return int(i);
+	}
+
+	std::string string(const Json& v, const std::string& field) const
+	{
+		if (!v.is_string())
+			fail(field, "must be a string (got " + typeName(v) + ")");
+		return v.get<std::string>();
+	}
+
+	bool boolean(const Json& v, const std::string& field) const
+	{
+		if (!v.is_boolean())
+			fail(field, "must be true or false (got " + typeName(v) + ")");
+		return v.get<bool>();
+	}
+
+	/// Array of exactly n finite numbers.
+	std::vector<double> numbers(const Json& v, const std::string& field, std::size_t n) const
+	{
+		if (!v.is_array() || v.size() != n)
+			fail(field, "must be an array of " + std::to_string(n) + " numbers");
+		std::vector<double> out;
+		for (std::size_t i = 0; i < n; ++i)
+			out.push_back(number(v[i], field + "[" + std::to_string(i) + "]"));
+		return out;
+	}
+
+	const Json& object(const Json& v, const std::string& field) const
+	{
+		if (!v.is_object())
+			fail(field, "must be an object (got " + typeName(v) + ")");
+		return v;
+	}
+
+	static std::string format(double d)
+	{
+		std::ostringstream s;
+		s.precision(17);
+		s << d;
+		return s.str();
+	}
+
+private:
+	static std::string typeName(const Json& v) { return v.type_name(); }
+	std::string name_;
+};
+
+FittedEllipsoid readEllipsoid(const Reader& r, const Json& e, const std::string& field)
+{
+	r.object(e, field);
+	FittedEllipsoid f;
+	const std::string regionName_ = r.string(r.require(e, "region", field), field + ".region");
+	if (!regionFromName(regionName_, &f.region))
+		r.fail(field + ".region", "unknown region \"" + regionName_ + "\"");
+
+	const std::vector<double> c = r.numbers(r.require(e, "center", field), field + ".center", 3);
+	f.ellipsoid.center = Eigen::Vector3d(c[0], c[1], c[2]);
+
+	const std::vector<double> q = r.numbers(r.require(e, "rotation", field), field + ".rotation", 4);
+	const Eigen::Quaterniond quat(q[0], q[1], q[2], q[3]); // [w, x, y, z]
+	const double norm = quat.norm();
+	if (std::abs(norm - 1.0) > kUnitQuaternionTolerance)
+		r.fail(field + ".rotation", "must be a unit quaternion [w,x,y,z] (norm " + Reader::format(norm) + ")");
+	f.ellipsoid.rotation = quat.normalized().toRotationMatrix();
+
+	const std::vector<double> a = r.numbers(r.require(e, "axes", field), field + ".axes", 3);
+	for (int i = 0; i < 3; ++i)
+		if (!(a[std::size_t(i)] > 0.0))
+			r.fail(field + ".axes[" + std::to_string(i) + "]", "must be > 0 (got " + Reader::format(a[std::size_t(i)]) + ")");
+	f.ellipsoid.radii = Eigen::Vector3d(a[0], a[1], a[2]);
+
+	auto optional = [&](const char* key, double& out) {
+		out = std::numeric_limits<double>::quiet_NaN();
+		if (e.contains(key))
+			out = r.nonNegative(e[key], field + "." + key);
+	};
+	optional("radial_error", f.radialError);
+	optional("max_radial_error", f.maxRadialError);
+	optional("mean_distance", f.meanDistance);
+	optional("max_distance", f.maxDistance);
+	f.vertexCount = e.contains("vertices") ? r.integer(e["vertices"], field + ".vertices", 0) : 0;
+	return f;
+}
+
+RefineStatus refineStatusFromName(const Reader& r, const std::string& s, const std::string& field)
+{
+	for (RefineStatus st : {RefineStatus::Converged, RefineStatus::Frozen, RefineStatus::BudgetReached,
+							RefineStatus::SplitCapReached})
+		if (s == toString(st))
+			return st;
+	r.fail(field, "unknown status \"" + s + "\"");
+}
+
+} // namespace
+
+std::string toEllipsoidJson(const BodyFit& fit)
+{
+	Json doc;
+	doc["format"] = kEllipsoidFormat;
+	doc["version"] = kEllipsoidFormatVersion;
+	doc["units"] = "m";
+	doc["up"] = "+y";
+	doc["source"] = {{"mesh", fit.source.mesh}, {"vertices", fit.source.vertices}, {"height", fit.source.height}};
+	doc["params"] = {{"mu_torso", fit.params.muTorso},
+					 {"mu_limbs", fit.params.muLimbs},
+					 {"relative_to_height", fit.params.relativeToHeight},
+					 {"sigma", fit.params.sigma},
+					 {"max_ellipsoids", fit.params.maxEllipsoids},
+					 {"min_radius", fit.params.minRadius}};
+	Json list = Json::array();
+	for (const FittedEllipsoid& f : fit.ellipsoids)
+	{
+		Eigen::Quaterniond q = toQuaternion(f.ellipsoid.rotation).normalized();
+		if (q.w() < 0.0) // q and -q are the same rotation; store the one with w >= 0
+			q.coeffs() = -q.coeffs();
+		Json e;
+		e["region"] = regionName(f.region);
+		e["center"] = vec3(f.ellipsoid.center);
+		e["rotation"] = Json::array({q.w(), q.x(), q.y(), q.z()});
+		e["axes"] = vec3(f.ellipsoid.radii);
+		putFinite(e, "radial_error", f.radialError);
+		putFinite(e, "max_radial_error", f.maxRadialError);
+		putFinite(e, "mean_distance", f.meanDistance);
+		putFinite(e, "max_distance", f.maxDistance);
+		e["vertices"] = f.vertexCount;
+		list.push_back(std::move(e));
+	}
+	doc["ellipsoids"] = std::move(list);
+	Json timing = Json::object();
+	for (const StageTiming& t : fit.timings)
+		timing[t.stage] = t.ms;
+	doc["timing_ms"] = std::move(timing);
+	Json stats;
+	stats["count"] = int(fit.ellipsoids.size());
+	putFinite(stats, "mean_radial_error", fit.meanRadialError());
+	putFinite(stats, "max_radial_error", fit.maxRadialError());
+	putFinite(stats, "mean_distance", fit.meanDistance());
+	putFinite(stats, "max_distance", fit.maxDistance());
+	doc["stats"] = std::move(stats);
+	doc["refinement"] = {{"status", toString(fit.status)},
+						 {"splits_accepted", fit.splitsAccepted},
+						 {"splits_rejected", fit.splitsRejected}};
+	doc["warnings"] = fit.warnings;
+	return doc.dump(2) + "\n";
+}
+
+void writeEllipsoidJson(const std::string& path, const BodyFit& fit)
+{
+	const std::string text = toEllipsoidJson(fit);
+	std::ofstream out(path, std::ios::binary);
+	if (!out)
+		throw FormatError(path + ": cannot open for writing");
+	out << text;
+	out.close();
+	if (!out)
+		throw FormatError(path + ": write failed");
+}
+
+BodyFit parseEllipsoidJson(const std::string& text, const std::string& name)
+{
+	const Reader r(name);
+	Json doc;
+	try
+	{
+		doc = Json::parse(text);
+	}
+	catch (const nlohmann::json::parse_error& e)
+	{
+		// nlohmann's message: "[json.exception.parse_error.101] parse error at line L, column C: ..."
+		std::string what = e.what();
+		const std::size_t pos = what.find("] ");
+		throw FormatError(name + ": not valid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
+	}
+	r.object(doc, "document");
+
+	const std::string format = r.string(r.require(doc, "format", ""), "format");
+	if (format != kEllipsoidFormat)
+		r.fail("format", "must be \"" + std::string(kEllipsoidFormat) + "\" (got \"" + format + "\")");
+	const int version = r.integer(r.require(doc, "version", ""), "version", 0);
+	if (version != kEllipsoidFormatVersion)
+		r.fail("version", "unsupported version " + std::to_string(version) + " (this build reads version " +
+							  std::to_string(kEllipsoidFormatVersion) + ")");
+	if (doc.contains("units") && r.string(doc["units"], "units") != "m")
+		r.fail("units", "must be \"m\"");
+	if (doc.contains("up") && r.string(doc["up"], "up") != "+y")
+		r.fail("up", "must be \"+y\"");
+
+	BodyFit fit;
+	if (doc.contains("source"))
+	{
+		const Json& s = r.object(doc["source"], "source");
+		if (s.contains("mesh"))
+			fit.source.mesh = r.string(s["mesh"], "source.mesh");
+		if (s.contains("vertices"))
+			fit.source.vertices = r.integer(s["vertices"], "source.vertices", 0);
+		if (s.contains("height"))
+			fit.source.height = r.nonNegative(s["height"], "source.height");
+	}
+	if (doc.contains("params"))
+	{
+		const Json& p = r.object(doc["params"], "params");
+		if (p.contains("mu_torso"))
+			fit.params.muTorso = r.nonNegative(p["mu_torso"], "params.mu_torso");
+		if (p.contains("mu_limbs"))
+			fit.params.muLimbs = r.nonNegative(p["mu_limbs"], "params.mu_limbs");
+		if (p.contains("relative_to_height"))
+			fit.params.relativeToHeight = r.boolean(p["relative_to_height"], "params.relative_to_height");
+		if (p.contains("sigma"))
+			fit.params.sigma = r.nonNegative(p["sigma"], "params.sigma");
+		if (p.contains("max_ellipsoids"))
+			fit.params.maxEllipsoids = r.integer(p["max_ellipsoids"], "params.max_ellipsoids", 0);
+		if (p.contains("min_radius"))
+			fit.params.minRadius = r.nonNegative(p["min_radius"], "params.min_radius");
+	}
+
+	const Json& list = r.require(doc, "ellipsoids", "");
+	if (!list.is_array())
+		r.fail("ellipsoids", "must be an array");
+	for (std::size_t i = 0; i < list.size(); ++i)
+		fit.ellipsoids.push_back(readEllipsoid(r, list[i], "ellipsoids[" + std::to_string(i) + "]"));
+
+	if (doc.contains("timing_ms"))
+		for (const auto& item : r.object(doc["timing_ms"], "timing_ms").items())
+			fit.timings.push_back({item.key(), r.nonNegative(item.value(), "timing_ms." + item.key())});
+	if (doc.contains("stats"))
+	{
+		const Json& s = r.object(doc["stats"], "stats");
+		if (s.contains("count") && r.integer(s["count"], "stats.count", 0) != int(fit.ellipsoids.size()))
+			r.fail("stats.count", "is " + std::to_string(s["count"].get<long long>()) + " but the file has " +
+									  std::to_string(fit.ellipsoids.size()) + " ellipsoids");
+	}
+	if (doc.contains("refinement"))
+	{
+		const Json& s = r.object(doc["refinement"], "refinement");
+		if (s.contains("status"))
+			fit.status = refineStatusFromName(r, r.string(s["status"], "refinement.status"), "refinement.status");
+		if (s.contains("splits_accepted"))
+			fit.splitsAccepted = r.integer(s["splits_accepted"], "refinement.splits_accepted", 0);
+		if (s.contains("splits_rejected"))
+			fit.splitsRejected = r.integer(s["splits_rejected"], "refinement.splits_rejected", 0);
+	}
+	if (doc.contains("warnings"))
+	{
+		const Json& w = doc["warnings"];
+		if (!w.is_array())
+			r.fail("warnings", "must be an array of strings");
+		for (std::size_t i = 0; i < w.size(); ++i)
+			fit.warnings.push_back(r.string(w[i], "warnings[" + std::to_string(i) + "]"));
+	}
+	return fit;
+}
+
+BodyFit readEllipsoidJson(const std::string& path)
+{
+	std::ifstream in(path, std::ios::binary);
+	if (!in)
+		throw FormatError(path + ": cannot open (missing or unreadable)");
+	std::ostringstream text;
+	text << in.rdbuf();
+	if (in.bad())
+		throw FormatError(path + ": read failed");
+	return parseEllipsoidJson(text.str(), path);
+}
+
+Eigen::Vector3d regionColor(Region region)
+{
+	// Hue per body part, left a lighter shade than right.
+	switch (region)
+	{
+	case Region::Head: return {0.95, 0.80, 0.25};
+	case Region::TorsoLowerLeft: return {0.55, 0.75, 0.95};
+	case Region::TorsoLowerRight: return {0.30, 0.50, 0.80};
+	case Region::TorsoMiddleLeft: return {0.55, 0.90, 0.85};
+	case Region::TorsoMiddleRight: return {0.25, 0.65, 0.60};
+	case Region::TorsoUpperLeft: return {0.75, 0.65, 0.95};
+	case Region::TorsoUpperRight: return {0.50, 0.40, 0.75};
+	case Region::ArmUpperLeft: return {0.95, 0.60, 0.55};
+	case Region::ArmUpperRight: return {0.80, 0.35, 0.30};
+	case Region::ArmLowerLeft: return {0.95, 0.75, 0.50};
+	case Region::ArmLowerRight: return {0.85, 0.50, 0.20};
+	case Region::LegUpperLeft: return {0.60, 0.90, 0.55};
+	case Region::LegUpperRight: return {0.35, 0.70, 0.30};
+	case Region::LegLowerLeft: return {0.85, 0.90, 0.50};
+	case Region::LegLowerRight: return {0.60, 0.65, 0.25};
+	case Region::Whole: return {0.70, 0.70, 0.70};
+	}
+	return {0.7, 0.7, 0.7};
+}
+
+TriMesh ellipsoidMesh(const std::vector<FittedEllipsoid>& ellipsoids, int subdivisions, Eigen::MatrixX3d* colors)
+{
+	if (subdivisions < 0 || subdivisions > 6)
+		throw InvalidInputError("ellipsoidMesh: subdivisions must be in [0, 6]");
+	// Unit icosahedron, then midpoint subdivision projected back onto the sphere.
+	const double t = (1.0 + std::sqrt(5.0)) / 2.0;
+	std::vector<Eigen::Vector3d> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+									  {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+	for (Eigen::Vector3d& p : v)
+		p.normalize();
+	std::vector<Eigen::Vector3i> f = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+									  {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
+									  {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+	for (int level = 0; level < subdivisions; ++level)
+	{
+		std::map<std::pair<int, int>, int> midpoints;
+		auto midpoint = [&](int a, int b) {
+			const std::pair<int, int> key(std::min(a, b), std::max(a, b));
+			const auto it = midpoints.find(key);
+			if (it != midpoints.end())
+				return it->second;
+			v.push_back((v[std::size_t(a)] + v[std::size_t(b)]).normalized());
+			const int id = int(v.size()) - 1;
+			midpoints.emplace(key, id);
+			return id;
+		};
+		std::vector<Eigen::Vector3i> next;
+		next.reserve(f.size() * 4);
+		for (const Eigen::Vector3i& tri : f)
+		{
+			const int ab = midpoint(tri[0], tri[1]), bc = midpoint(tri[1], tri[2]), ca = midpoint(tri[2], tri[0]);
+			next.push_back({tri[0], ab, ca});
+			next.push_back({tri[1], bc, ab});
+			next.push_back({tri[2], ca, bc});
+			next.push_back({ab, bc, ca});
+		}
+		f.swap(next);
+	}
+
+	const Eigen::Index nv = Eigen::Index(v.size()), nf = Eigen::Index(f.size());
+	const Eigen::Index count = Eigen::Index(ellipsoids.size());
+	TriMesh mesh;
+	mesh.V.resize(nv * count, 3);
+	mesh.F.resize(nf * count, 3);
+	if (colors != nullptr)
+		colors->resize(nv * count, 3);
+	for (Eigen::Index e = 0; e < count; ++e)
+	{
+		const Ellipsoid& el = ellipsoids[std::size_t(e)].ellipsoid;
+		const Eigen::Vector3d color = regionColor(ellipsoids[std::size_t(e)].region);
+		for (Eigen::Index i = 0; i < nv; ++i)
+		{
+			mesh.V.row(e * nv + i) = el.toWorld(el.radii.cwiseProduct(v[std::size_t(i)])).transpose();
+			if (colors != nullptr)
+				colors->row(e * nv + i) = color.transpose();
+		}
+		for (Eigen::Index j = 0; j < nf; ++j)
+			mesh.F.row(e * nf + j) = (f[std::size_t(j)].array() + int(e * nv)).transpose();
+	}
+	return mesh;
+}
+
+void exportEllipsoidMesh(const std::string& path, const std::vector<FittedEllipsoid>& ellipsoids, int subdivisions)
+{
+	auto endsWith = [&](const char* ext) {
+		const std::string e(ext);
+		return path.size() >= e.size() && path.compare(path.size() - e.size(), e.size(), e) == 0;
+	};
+	if (!endsWith(".obj") && !endsWith(".ply"))
+		throw InvalidInputError(path + ": ellipsoid mesh export needs a .obj or .ply file name");
+	Eigen::MatrixX3d colors;
+	const TriMesh mesh = ellipsoidMesh(ellipsoids, subdivisions, &colors);
+	saveTriMesh(path, mesh, &colors);
+}
+
+} // namespace bodyfit
