@@ -3,6 +3,16 @@
 
 #include "bodyfit/segmentation.h"
 
+#include "bodyfit/mesh_io.h"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
 namespace bodyfit
 {
 
@@ -57,6 +67,794 @@ bool regionFromName(const std::string& name, Region* region)
 bool isTorso(Region region)
 {
 	return region >= Region::TorsoLowerLeft && region <= Region::TorsoUpperRight;
+}
+
+namespace
+{
+
+using Clock = std::chrono::steady_clock;
+
+/// One Dijkstra field with its shortest-path tree.
+struct Field
+{
+	std::vector<double> d;
+	std::vector<int> pred;
+};
+
+Eigen::Vector3d vertex(const TriMesh& mesh, int v) { return mesh.V.row(v).transpose(); }
+
+/// A third of the area of every face touching a vertex (the barycentric vertex area).
+std::vector<double> vertexAreas(const TriMesh& mesh)
+{
+	std::vector<double> area(size_t(mesh.vertexCount()), 0.0);
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		const Eigen::Vector3d a = vertex(mesh, mesh.F(f, 0)), b = vertex(mesh, mesh.F(f, 1)),
+							  c = vertex(mesh, mesh.F(f, 2));
+		const double third = (b - a).cross(c - a).norm() / 6.0;
+		for (int k = 0; k < 3; ++k)
+			area[size_t(mesh.F(f, k))] += third;
+	}
+	return area;
+}
+
+/// Total length of the isolines {d = t} for t = t0 + i step, i in [0, count): the perimeter of the cross-section
+/// that a geodesic front cuts through the surface at each level. Levels exactly at a vertex value are skipped by
+/// the strict comparisons (measure zero).
+std::vector<double> isolineLengths(const TriMesh& mesh, const std::vector<double>& d, double t0, double step,
+	int count)
+{
+	std::vector<double> length(size_t(std::max(count, 0)), 0.0);
+	if (count <= 0 || !(step > 0.0))
+		return length;
+	const double t1 = t0 + step * (count - 1);
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
+		std::sort(v.begin(), v.end(), [&](int x, int y) { return d[size_t(x)] < d[size_t(y)]; });
+		const double lo = d[size_t(v[0])], mid = d[size_t(v[1])], hi = d[size_t(v[2])];
+		if (!std::isfinite(hi) || hi <= t0 || lo >= t1)
+			continue;
+		const int i0 = std::max(0, int(std::ceil((lo - t0) / step)));
+		const int i1 = std::min(count - 1, int(std::floor((hi - t0) / step)));
+		const Eigen::Vector3d p0 = vertex(mesh, v[0]), p1 = vertex(mesh, v[1]), p2 = vertex(mesh, v[2]);
+		for (int i = i0; i <= i1; ++i)
+		{
+			const double t = t0 + step * i;
+			if (!(t > lo && t < hi))
+				continue;
+			// The level crosses the long edge (lo, hi) and one of the two short ones.
+			const Eigen::Vector3d q = p0 + (p2 - p0) * ((t - lo) / (hi - lo));
+			Eigen::Vector3d r;
+			if (t < mid)
+				r = p0 + (p1 - p0) * ((t - lo) / (mid - lo));
+			else if (t > mid)
+				r = p1 + (p2 - p1) * ((t - mid) / (hi - mid));
+			else
+				r = p1;
+			length[size_t(i)] += (q - r).norm();
+		}
+	}
+	return length;
+}
+
+/// The narrowest cross-section near a predicted cut: among the interior local minima of the isoline length over
+/// [center - band, center + band] (3-tap moving average, which removes single-level tessellation noise), the level
+/// with the shortest isoline; `center` itself when the profile has no interior minimum (a monotone taper, e.g. the
+/// forearm towards the wrist, must not drag the cut to the edge of the band).
+double narrowestLevel(const TriMesh& mesh, const std::vector<double>& d, double center, double band, double step)
+{
+	const int count = std::max(5, int(std::ceil(2.0 * band / step)) + 1);
+	const double t0 = center - band;
+	const std::vector<double> raw = isolineLengths(mesh, d, t0, step, count);
+	std::vector<double> smooth(raw.size(), 0.0);
+	for (int i = 1; i + 1 < count; ++i)
+		smooth[size_t(i)] = (raw[size_t(i - 1)] + raw[size_t(i)] + raw[size_t(i + 1)]) / 3.0;
+	int best = -1;
+	for (int i = 2; i + 2 < count; ++i)
+	{
+		const double s = smooth[size_t(i)];
+		const bool localMin = s > 0.0 && s <= smooth[size_t(i - 1)] && s <= smooth[size_t(i + 1)] &&
+							  (s < smooth[size_t(i - 1)] || s < smooth[size_t(i + 1)]);
+		if (localMin && (best < 0 || s < smooth[size_t(best)]))
+			best = i;
+	}
+	return best < 0 ? center : t0 + step * best;
+}
+
+/// The vertex of `path` whose value in `d` is closest to `level`.
+int pathVertexAt(const std::vector<int>& path, const std::vector<double>& d, double level)
+{
+	int best = path.empty() ? -1 : path.front();
+	double bestGap = std::numeric_limits<double>::infinity();
+	for (int v : path)
+	{
+		const double gap = std::abs(d[size_t(v)] - level);
+		if (gap < bestGap)
+		{
+			bestGap = gap;
+			best = v;
+		}
+	}
+	return best;
+}
+
+/// Index in `path` of the vertex with the largest distance from the chord path[a] -> path[b] (a < b), or -1.
+int deepestOnChord(const TriMesh& mesh, const std::vector<int>& path, int a, int b, double* depth)
+{
+	*depth = 0.0;
+	if (a < 0 || b <= a + 1)
+		return -1;
+	const Eigen::Vector3d pa = vertex(mesh, path[size_t(a)]), pb = vertex(mesh, path[size_t(b)]);
+	const Eigen::Vector3d axis = pb - pa;
+	const double axisLength2 = axis.squaredNorm();
+	int best = -1;
+	for (int i = a + 1; i < b; ++i)
+	{
+		const Eigen::Vector3d w = vertex(mesh, path[size_t(i)]) - pa;
+		const double along = axisLength2 > 0.0 ? std::clamp(w.dot(axis) / axisLength2, 0.0, 1.0) : 0.0;
+		const double dist = (w - along * axis).norm();
+		if (dist > *depth)
+		{
+			*depth = dist;
+			best = i;
+		}
+	}
+	return best;
+}
+
+/// Re-labels every connected piece of a region except its largest (by vertex count) with the label most of its
+/// neighbours outside the piece carry, until every region is one piece (or `maxPasses` is reached).
+void mergeStrayPieces(const GeodesicSolver& graph, const std::vector<int>& component, std::vector<Region>& labels,
+	int maxPasses)
+{
+	const int n = int(labels.size());
+	std::vector<int> piece(static_cast<size_t>(n), -1);
+	std::vector<int> members; // vertices of every piece, piece by piece (BFS order)
+	std::vector<int> pieceBegin, pieceSize;
+	std::vector<Region> pieceLabel;
+	for (int pass = 0; pass < maxPasses; ++pass)
+	{
+		std::fill(piece.begin(), piece.end(), -1);
+		members.clear();
+		pieceBegin.clear();
+		pieceSize.clear();
+		pieceLabel.clear();
+		for (int s = 0; s < n; ++s)
+		{
+			if (piece[size_t(s)] >= 0 || component[size_t(s)] != 0)
+				continue;
+			const int id = int(pieceSize.size());
+			const size_t begin = members.size();
+			pieceBegin.push_back(int(begin));
+			pieceLabel.push_back(labels[size_t(s)]);
+			piece[size_t(s)] = id;
+			members.push_back(s);
+			for (size_t i = begin; i < members.size(); ++i)
+			{
+				const auto [first, last] = graph.neighbors(members[i]);
+				for (const int* w = first; w != last; ++w)
+				{
+					if (graph.isMeshEdge(w) && piece[size_t(*w)] < 0 && labels[size_t(*w)] == labels[size_t(s)])
+					{
+						piece[size_t(*w)] = id;
+						members.push_back(*w);
+					}
+				}
+			}
+			pieceSize.push_back(int(members.size() - begin));
+		}
+		// Largest piece per label (the first found wins a tie: lowest vertex index).
+		std::array<int, kBodyRegionCount + 1> keep;
+		keep.fill(-1);
+		for (int id = 0; id < int(pieceSize.size()); ++id)
+		{
+			int& k = keep[size_t(pieceLabel[size_t(id)])];
+			if (k < 0 || pieceSize[size_t(id)] > pieceSize[size_t(k)])
+				k = id;
+		}
+		bool changed = false;
+		for (int id = 0; id < int(pieceSize.size()); ++id)
+		{
+			if (keep[size_t(pieceLabel[size_t(id)])] == id)
+				continue;
+			// Majority label among the mesh-edge neighbours of the piece (lowest region index on ties).
+			std::array<int, kBodyRegionCount + 1> votes{};
+			const int* first = members.data() + pieceBegin[size_t(id)];
+			const int* last = first + pieceSize[size_t(id)];
+			for (const int* v = first; v != last; ++v)
+			{
+				const auto [nb, ne] = graph.neighbors(*v);
+				for (const int* w = nb; w != ne; ++w)
+					if (graph.isMeshEdge(w) && piece[size_t(*w)] != id && component[size_t(*w)] == 0)
+						++votes[size_t(labels[size_t(*w)])];
+			}
+			const int winner = int(std::max_element(votes.begin(), votes.end()) - votes.begin());
+			if (votes[size_t(winner)] == 0)
+				continue;
+			for (const int* v = first; v != last; ++v)
+				labels[size_t(*v)] = Region(winner);
+			changed = true;
+		}
+		if (!changed)
+			return;
+	}
+}
+
+} // namespace
+
+Segmentation wholeBodySegmentation(const TriMesh& mesh, const std::string& reason)
+{
+	Segmentation result;
+	result.ok = false;
+	result.failureReason = reason;
+	result.labels.assign(size_t(mesh.vertexCount()), Region::Whole);
+	if (mesh.vertexCount() > 0)
+		result.height = mesh.V.col(1).maxCoeff() - mesh.V.col(1).minCoeff();
+	return result;
+}
+
+namespace
+{
+
+/// The segmentation proper; returns a non-empty reason when the mesh does not look like a standing human.
+/// Fills `seg` (labels, features, measures) as far as it got.
+std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options, Segmentation& seg)
+{
+	const int n = mesh.vertexCount();
+	int componentCount = 0;
+	const std::vector<int> component = connectedComponents(mesh, &componentCount);
+	int mainCount = 0;
+	for (int c : component)
+		mainCount += c == 0 ? 1 : 0;
+	if (mainCount < 100)
+		return "too few vertices for a body (" + std::to_string(mainCount) + " in the largest component, need 100)";
+
+	double yMin = std::numeric_limits<double>::infinity(), yMax = -yMin;
+	for (int v = 0; v < n; ++v)
+	{
+		if (component[size_t(v)] != 0)
+			continue;
+		yMin = std::min(yMin, mesh.V(v, 1));
+		yMax = std::max(yMax, mesh.V(v, 1));
+	}
+	const double H = yMax - yMin;
+	seg.height = H;
+	if (!(H > 0.0))
+		return "the mesh has no height (flat in y)";
+
+	const std::vector<double> area = vertexAreas(mesh);
+	GeodesicSolver solver(mesh, options.geodesics);
+
+	// Centre: the vertex of the main component nearest its area-weighted centroid.
+	Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+	double totalArea = 0.0;
+	for (int v = 0; v < n; ++v)
+	{
+		if (component[size_t(v)] != 0)
+			continue;
+		centroid += area[size_t(v)] * vertex(mesh, v);
+		totalArea += area[size_t(v)];
+	}
+	if (!(totalArea > 0.0))
+		return "the mesh has zero surface area";
+	centroid /= totalArea;
+	int center = -1;
+	double bestCenter = std::numeric_limits<double>::infinity();
+	for (int v = 0; v < n; ++v)
+	{
+		const double d2 = (vertex(mesh, v) - centroid).squaredNorm();
+		if (component[size_t(v)] == 0 && d2 < bestCenter)
+		{
+			bestCenter = d2;
+			center = v;
+		}
+	}
+
+	// End feature points: farthest-point sampling in the geodesic metric, seeded with the centre. On a human the
+	// five extremities (head top, two fingertips, two toe tips) are each farther from everything chosen before
+	// than any other point; the field of every chosen point is kept for the rest of the pipeline.
+	std::vector<double> centerField;
+	solver.compute(center, centerField);
+	std::vector<double> nearest = centerField;
+	std::array<Field, 5> fields;
+	std::array<int, 5> ends{};
+	for (int k = 0; k < 5; ++k)
+	{
+		int far = -1;
+		double farDistance = -1.0;
+		for (int v = 0; v < n; ++v)
+		{
+			if (std::isfinite(nearest[size_t(v)]) && nearest[size_t(v)] > farDistance)
+			{
+				farDistance = nearest[size_t(v)];
+				far = v;
+			}
+		}
+		if (far < 0 || !(farDistance > 0.0))
+			return "fewer than five extremities found";
+		ends[size_t(k)] = far;
+		solver.compute(far, fields[size_t(k)].d, &fields[size_t(k)].pred);
+		for (int v = 0; v < n; ++v)
+			nearest[size_t(v)] = std::min(nearest[size_t(v)], fields[size_t(k)].d[size_t(v)]);
+	}
+
+	// Classify: feet = the two lowest, head = the highest of the other three, hands = the remaining two;
+	// the subject's left is +x.
+	std::array<int, 5> order = {0, 1, 2, 3, 4};
+	std::sort(order.begin(), order.end(), [&](int a, int b) {
+		const double ya = mesh.V(ends[size_t(a)], 1), yb = mesh.V(ends[size_t(b)], 1);
+		return ya != yb ? ya < yb : ends[size_t(a)] < ends[size_t(b)];
+	});
+	auto byX = [&](int a, int b, int* left, int* right) {
+		const bool aLeft = mesh.V(ends[size_t(a)], 0) > mesh.V(ends[size_t(b)], 0);
+		*left = aLeft ? a : b;
+		*right = aLeft ? b : a;
+	};
+	int iFootL, iFootR, iHandL, iHandR;
+	byX(order[0], order[1], &iFootL, &iFootR);
+	byX(order[2], order[3], &iHandL, &iHandR);
+	const int iHead = order[4];
+	const Field& head = fields[size_t(iHead)];
+	const Field& handL = fields[size_t(iHandL)];
+	const Field& handR = fields[size_t(iHandR)];
+	const Field& footL = fields[size_t(iFootL)];
+	const Field& footR = fields[size_t(iFootR)];
+	FeaturePoints& fp = seg.features;
+	fp.headTop = ends[size_t(iHead)];
+	fp.handLeft = ends[size_t(iHandL)];
+	fp.handRight = ends[size_t(iHandR)];
+	fp.footLeft = ends[size_t(iFootL)];
+	fp.footRight = ends[size_t(iFootR)];
+	auto y = [&](int v) { return mesh.V(v, 1); };
+	auto heightOf = [&](int v) { return (y(v) - yMin) / H; };
+
+	// Checks that catch most non-humans early (the remaining ones fail the region checks below).
+	if (options.validate)
+	{
+		if (heightOf(fp.footLeft) > 0.12 || heightOf(fp.footRight) > 0.12)
+			return "the two lowest extremities are not at the floor (not a standing figure)";
+		if (heightOf(fp.headTop) < 0.88)
+			return "no extremity at the top of the mesh (no head, or arms above the head)";
+		if (heightOf(fp.handLeft) < 0.2 || heightOf(fp.handRight) < 0.2)
+			return "two extremities besides the feet touch the ground (four legs?)";
+	}
+
+	// Perineum: on the geodesic path between the toe tips, the highest vertex of its middle part (the paper takes
+	// the half-way point; the highest point is the crotch itself even when the legs are not symmetric).
+	const double toeToToe = footL.d[size_t(fp.footRight)];
+	if (!std::isfinite(toeToToe))
+		return "the feet are not connected";
+	{
+		const std::vector<int> path = tracePath(footL.pred, fp.footRight);
+		double best = -std::numeric_limits<double>::infinity();
+		for (int v : path)
+		{
+			const double s = footL.d[size_t(v)] / toeToToe;
+			if (s >= 0.3 && s <= 0.7 && y(v) > best)
+			{
+				best = y(v);
+				fp.perineum = v;
+			}
+		}
+	}
+	if (fp.perineum < 0)
+		return "no path between the feet";
+	SegmentationMeasures& m = seg.measures;
+	m.legLengthLeft = footL.d[size_t(fp.perineum)];
+	m.legLengthRight = footR.d[size_t(fp.perineum)];
+	if (options.validate)
+	{
+		const double crotch = heightOf(fp.perineum);
+		if (crotch < 0.3 || crotch > 0.65)
+			return "the point between the legs is at " + std::to_string(int(std::lround(crotch * 100))) +
+				   "% of the height (a standing human: 45-50%)";
+	}
+
+	// Armpit: the geodesic from a fingertip to the toe tip on the same side runs along the arm, round the armpit
+	// and down the flank. The armpit is the corner of that path: the vertex farthest from the chord between a point
+	// near the elbow (hand + forearm = 0.254 H from the fingertip) and a point on the flank 0.1 H above the leg cut.
+	auto findArmpit = [&](const Field& hand, int footPoint, const Field& foot, double legLength, int* armpit) {
+		const std::vector<int> path = tracePath(hand.pred, footPoint);
+		int a = -1, b = -1;
+		for (int i = 0; i < int(path.size()); ++i)
+		{
+			const int v = path[size_t(i)];
+			if (a < 0 && hand.d[size_t(v)] >= 0.254 * H)
+				a = i;
+			if (b < 0 && a >= 0 && foot.d[size_t(v)] <= legLength + 0.1 * H)
+				b = i;
+		}
+		double depth = 0.0;
+		const int i = deepestOnChord(mesh, path, a, b, &depth);
+		*armpit = i >= 0 ? path[size_t(i)] : -1;
+		return depth;
+	};
+	const double depthL = findArmpit(handL, fp.footLeft, footL, m.legLengthLeft, &fp.armpitLeft);
+	const double depthR = findArmpit(handR, fp.footRight, footR, m.legLengthRight, &fp.armpitRight);
+	if (fp.armpitLeft < 0 || fp.armpitRight < 0)
+		return "no armpit found between the arms and the flanks";
+	if (options.validate && std::min(depthL, depthR) < 0.02 * H)
+		return "the arms do not branch off the torso (no armpit corner)";
+	m.armLengthLeft = handL.d[size_t(fp.armpitLeft)];
+	m.armLengthRight = handR.d[size_t(fp.armpitRight)];
+
+	// Middle-layer cuts: the narrowest cross-section in a band around the proportion-based prediction.
+	const double step = options.isolineStep * H;
+	m.elbowDistanceLeft = narrowestLevel(mesh, handL.d, options.elbowFraction * m.armLengthLeft,
+		options.elbowBand * m.armLengthLeft, step);
+	m.elbowDistanceRight = narrowestLevel(mesh, handR.d, options.elbowFraction * m.armLengthRight,
+		options.elbowBand * m.armLengthRight, step);
+	m.kneeDistanceLeft = narrowestLevel(mesh, footL.d, options.kneeFraction * m.legLengthLeft,
+		options.kneeBand * m.legLengthLeft, step);
+	m.kneeDistanceRight = narrowestLevel(mesh, footR.d, options.kneeFraction * m.legLengthRight,
+		options.kneeBand * m.legLengthRight, step);
+	fp.elbowLeft = pathVertexAt(tracePath(handL.pred, fp.armpitLeft), handL.d, m.elbowDistanceLeft);
+	fp.elbowRight = pathVertexAt(tracePath(handR.pred, fp.armpitRight), handR.d, m.elbowDistanceRight);
+	fp.kneeLeft = pathVertexAt(tracePath(footL.pred, fp.perineum), footL.d, m.kneeDistanceLeft);
+	fp.kneeRight = pathVertexAt(tracePath(footR.pred, fp.perineum), footR.d, m.kneeDistanceRight);
+
+	// Neck: a planar cut perpendicular to the body axis (perineum -> head top). A geodesic isoline from the head top
+	// would run through the mouth in front (the path over the face is longer than over the skull), so the head is
+	// cut by the narrowest planar cross-section below the chin instead. Only the surface near the head
+	// (geodesically within 0.35 H of the head top) is sliced, so raised hands never enter the profile.
+	const Eigen::Vector3d top = vertex(mesh, fp.headTop);
+	const Eigen::Vector3d bodyUp = (top - vertex(mesh, fp.perineum)).normalized();
+	std::vector<double> depth(static_cast<size_t>(n), std::numeric_limits<double>::infinity());
+	for (int v = 0; v < n; ++v)
+		if (head.d[size_t(v)] < 0.35 * H)
+			depth[size_t(v)] = (top - vertex(mesh, v)).dot(bodyUp);
+	m.neckDistance = narrowestLevel(mesh, depth, 0.5 * (options.neckBandMin + options.neckBandMax) * H,
+		0.5 * (options.neckBandMax - options.neckBandMin) * H, step);
+	fp.neck = pathVertexAt(tracePath(head.pred, fp.perineum), depth, m.neckDistance);
+	// Head = the piece above the cut that contains the head top.
+	std::vector<char> inHead(static_cast<size_t>(n), 0);
+	{
+		std::vector<int> stack(1, fp.headTop);
+		inHead[size_t(fp.headTop)] = 1;
+		while (!stack.empty())
+		{
+			const int v = stack.back();
+			stack.pop_back();
+			const auto [begin, end] = solver.neighbors(v);
+			for (const int* w = begin; w != end; ++w)
+			{
+				if (solver.isMeshEdge(w) && !inHead[size_t(*w)] && depth[size_t(*w)] < m.neckDistance)
+				{
+					inHead[size_t(*w)] = 1;
+					stack.push_back(*w);
+				}
+			}
+		}
+	}
+
+	// Regions: the head as cut above; a vertex belongs to an arm / a leg when its geodesic distance to that end point
+	// is below the limb's length; where two parts claim it, the one with the smaller relative distance wins.
+	// The rest is torso.
+	enum Part
+	{
+		kHead,
+		kArmL,
+		kArmR,
+		kLegL,
+		kLegR,
+		kTorso
+	};
+	const std::array<const Field*, 5> partField = {&head, &handL, &handR, &footL, &footR};
+	const std::array<double, 5> partLength = {
+		m.neckDistance, m.armLengthLeft, m.armLengthRight, m.legLengthLeft, m.legLengthRight};
+	std::vector<Region>& labels = seg.labels;
+	labels.assign(size_t(n), Region::Whole);
+	std::vector<char> part(static_cast<size_t>(n), char(kTorso));
+	int contested = 0;
+	std::array<double, 6> partArea{};
+	for (int v = 0; v < n; ++v)
+	{
+		if (component[size_t(v)] != 0)
+			continue;
+		int best = inHead[size_t(v)] ? int(kHead) : int(kTorso), claims = inHead[size_t(v)] ? 1 : 0;
+		double bestRatio = inHead[size_t(v)] ? 0.0 : 1.0;
+		for (int p = kArmL; p <= kLegR; ++p)
+		{
+			const double ratio = partField[size_t(p)]->d[size_t(v)] / partLength[size_t(p)];
+			if (ratio < 1.0)
+			{
+				++claims;
+				if (ratio < bestRatio)
+				{
+					bestRatio = ratio;
+					best = p;
+				}
+			}
+		}
+		contested += claims > 1 ? 1 : 0;
+		part[size_t(v)] = char(best);
+		partArea[size_t(best)] += area[size_t(v)];
+	}
+	if (options.validate)
+	{
+		if (contested > mainCount / 50)
+			return "limb regions overlap on " + std::to_string(contested) + " vertices (not a human layout)";
+		// A limb is a tube: its area is about 2 pi r L, far below the L^2-scale area of a blob's cap.
+		const std::array<const char*, 4> limbName = {"left arm", "right arm", "left leg", "right leg"};
+		for (int p = kArmL; p <= kLegR; ++p)
+		{
+			const double slender = partArea[size_t(p)] / (partLength[size_t(p)] * partLength[size_t(p)]);
+			if (slender > 1.2)
+				return std::string("the ") + limbName[size_t(p - kArmL)] + " is not a limb (area / length^2 = " +
+					   std::to_string(slender).substr(0, 4) + ", a limb is below 1)";
+		}
+		const double torsoShare = partArea[kTorso] / totalArea;
+		if (torsoShare < 0.15 || torsoShare > 0.7)
+			return "the torso covers " + std::to_string(int(std::lround(torsoShare * 100))) +
+				   "% of the surface (a human: 30-50%)";
+	}
+
+	// Torso frame: axis from the perineum to the centre of the neck cut; mid-sagittal plane = perpendicular bisector
+	// of the armpits (its normal points to the subject's left).
+	Eigen::Vector3d neckCentre = Eigen::Vector3d::Zero();
+	int neckRing = 0;
+	for (int v = 0; v < n; ++v)
+	{
+		if (part[size_t(v)] != kHead || component[size_t(v)] != 0)
+			continue;
+		const auto [begin, end] = solver.neighbors(v);
+		for (const int* w = begin; w != end; ++w)
+		{
+			if (solver.isMeshEdge(w) && part[size_t(*w)] != kHead)
+			{
+				neckCentre += vertex(mesh, v);
+				++neckRing;
+				break;
+			}
+		}
+	}
+	if (neckRing == 0)
+		return "the head has no boundary";
+	neckCentre /= neckRing;
+	const Eigen::Vector3d base = vertex(mesh, fp.perineum);
+	const Eigen::Vector3d axis = neckCentre - base;
+	const double axisLength2 = axis.squaredNorm();
+	const Eigen::Vector3d armpitL = vertex(mesh, fp.armpitLeft), armpitR = vertex(mesh, fp.armpitRight);
+	const Eigen::Vector3d midpoint = 0.5 * (armpitL + armpitR);
+	const Eigen::Vector3d sideNormal = armpitL - armpitR;
+	if (options.validate && (!(axisLength2 > 0.0) || axis.y() < 0.3 * H || sideNormal.x() <= 0.0))
+		return "the torso is not upright between the armpits";
+	m.waistHeight = (base + options.waistFraction * axis).y();
+	m.chestHeight = (base + options.chestFraction * axis).y();
+
+	for (int v = 0; v < n; ++v)
+	{
+		if (component[size_t(v)] != 0)
+			continue;
+		switch (part[size_t(v)])
+		{
+		case kHead:
+			labels[size_t(v)] = Region::Head;
+			break;
+		case kArmL:
+			labels[size_t(v)] = handL.d[size_t(v)] < m.elbowDistanceLeft ? Region::ArmLowerLeft : Region::ArmUpperLeft;
+			break;
+		case kArmR:
+			labels[size_t(v)] =
+				handR.d[size_t(v)] < m.elbowDistanceRight ? Region::ArmLowerRight : Region::ArmUpperRight;
+			break;
+		case kLegL:
+			labels[size_t(v)] = footL.d[size_t(v)] < m.kneeDistanceLeft ? Region::LegLowerLeft : Region::LegUpperLeft;
+			break;
+		case kLegR:
+			labels[size_t(v)] =
+				footR.d[size_t(v)] < m.kneeDistanceRight ? Region::LegLowerRight : Region::LegUpperRight;
+			break;
+		default:
+		{
+			const Eigen::Vector3d p = vertex(mesh, v);
+			const double s = (p - base).dot(axis) / axisLength2;
+			const bool left = (p - midpoint).dot(sideNormal) > 0.0;
+			if (s < options.waistFraction)
+				labels[size_t(v)] = left ? Region::TorsoLowerLeft : Region::TorsoLowerRight;
+			else if (s < options.chestFraction)
+				labels[size_t(v)] = left ? Region::TorsoMiddleLeft : Region::TorsoMiddleRight;
+			else
+				labels[size_t(v)] = left ? Region::TorsoUpperLeft : Region::TorsoUpperRight;
+		}
+		}
+	}
+
+	// Every region one connected piece: stray islands (tessellation noise at the cuts) join their neighbours.
+	mergeStrayPieces(solver, component, labels, 8);
+
+	// Vertices outside the main component: label of the nearest main-component vertex.
+	if (componentCount > 1)
+	{
+		for (int v = 0; v < n; ++v)
+		{
+			if (component[size_t(v)] == 0)
+				continue;
+			double best = std::numeric_limits<double>::infinity();
+			for (int w = 0; w < n; ++w)
+			{
+				const double d2 = (vertex(mesh, v) - vertex(mesh, w)).squaredNorm();
+				if (component[size_t(w)] == 0 && d2 < best)
+				{
+					best = d2;
+					labels[size_t(v)] = labels[size_t(w)];
+				}
+			}
+		}
+	}
+
+	if (options.validate)
+	{
+		const std::vector<int> counts = regionVertexCounts(labels);
+		const int minimum = std::max(5, mainCount / 500);
+		for (int r = 0; r < kBodyRegionCount; ++r)
+			if (counts[size_t(r)] < minimum)
+				return std::string("region ") + regionName(Region(r)) + " has " + std::to_string(counts[size_t(r)]) +
+					   " vertices (need " + std::to_string(minimum) + ")";
+	}
+	return {};
+}
+
+} // namespace
+
+Segmentation segmentBody(const TriMesh& mesh, const SegmentationOptions& options)
+{
+	const auto start = Clock::now();
+	Segmentation seg;
+	std::string reason;
+	if (mesh.vertexCount() < 4 || mesh.faceCount() < 1)
+		reason = "empty mesh";
+	else
+		reason = segmentInto(mesh, options, seg);
+	if (!reason.empty())
+	{
+		Segmentation failed = wholeBodySegmentation(mesh, "not a standing human: " + reason);
+		failed.features = seg.features;
+		failed.measures = seg.measures;
+		seg = std::move(failed);
+	}
+	else
+		seg.ok = true;
+	seg.milliseconds = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+	return seg;
+}
+
+Region mirrorRegion(Region region)
+{
+	switch (region)
+	{
+	case Region::TorsoLowerLeft: return Region::TorsoLowerRight;
+	case Region::TorsoLowerRight: return Region::TorsoLowerLeft;
+	case Region::TorsoMiddleLeft: return Region::TorsoMiddleRight;
+	case Region::TorsoMiddleRight: return Region::TorsoMiddleLeft;
+	case Region::TorsoUpperLeft: return Region::TorsoUpperRight;
+	case Region::TorsoUpperRight: return Region::TorsoUpperLeft;
+	case Region::ArmUpperLeft: return Region::ArmUpperRight;
+	case Region::ArmUpperRight: return Region::ArmUpperLeft;
+	case Region::ArmLowerLeft: return Region::ArmLowerRight;
+	case Region::ArmLowerRight: return Region::ArmLowerLeft;
+	case Region::LegUpperLeft: return Region::LegUpperRight;
+	case Region::LegUpperRight: return Region::LegUpperLeft;
+	case Region::LegLowerLeft: return Region::LegLowerRight;
+	case Region::LegLowerRight: return Region::LegLowerLeft;
+	default: return region;
+	}
+}
+
+std::vector<int> regionVertexCounts(const std::vector<Region>& labels)
+{
+	std::vector<int> counts(size_t(kBodyRegionCount) + 1, 0);
+	for (Region r : labels)
+		if (int(r) >= 0 && int(r) <= kBodyRegionCount)
+			++counts[size_t(r)];
+	return counts;
+}
+
+std::vector<int> regionComponentCounts(const TriMesh& mesh, const std::vector<Region>& labels)
+{
+	std::vector<int> counts(size_t(kBodyRegionCount) + 1, 0);
+	const int n = mesh.vertexCount();
+	if (int(labels.size()) != n)
+		return counts;
+	// Union-find over mesh edges whose ends share a label.
+	std::vector<int> parent(static_cast<size_t>(n));
+	for (int v = 0; v < n; ++v)
+		parent[size_t(v)] = v;
+	auto root = [&](int v) {
+		while (parent[size_t(v)] != v)
+		{
+			parent[size_t(v)] = parent[size_t(parent[size_t(v)])];
+			v = parent[size_t(v)];
+		}
+		return v;
+	};
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		for (int k = 0; k < 3; ++k)
+		{
+			const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3);
+			if (labels[size_t(a)] == labels[size_t(b)])
+				parent[size_t(root(a))] = root(b);
+		}
+	}
+	for (int v = 0; v < n; ++v)
+		if (root(v) == v && int(labels[size_t(v)]) >= 0 && int(labels[size_t(v)]) <= kBodyRegionCount)
+			++counts[size_t(labels[size_t(v)])];
+	return counts;
+}
+
+Eigen::Vector3d regionColor(Region region)
+{
+	switch (region)
+	{
+	case Region::Head: return {0.95, 0.85, 0.55};
+	case Region::TorsoLowerLeft: return {0.85, 0.35, 0.30};
+	case Region::TorsoLowerRight: return {0.45, 0.20, 0.60};
+	case Region::TorsoMiddleLeft: return {0.95, 0.55, 0.35};
+	case Region::TorsoMiddleRight: return {0.55, 0.40, 0.80};
+	case Region::TorsoUpperLeft: return {0.98, 0.72, 0.50};
+	case Region::TorsoUpperRight: return {0.70, 0.60, 0.92};
+	case Region::ArmUpperLeft: return {0.90, 0.20, 0.20};
+	case Region::ArmUpperRight: return {0.20, 0.35, 0.90};
+	case Region::ArmLowerLeft: return {0.98, 0.50, 0.10};
+	case Region::ArmLowerRight: return {0.15, 0.70, 0.95};
+	case Region::LegUpperLeft: return {0.80, 0.75, 0.10};
+	case Region::LegUpperRight: return {0.15, 0.65, 0.35};
+	case Region::LegLowerLeft: return {0.95, 0.90, 0.30};
+	case Region::LegLowerRight: return {0.40, 0.85, 0.50};
+	default: return {0.65, 0.65, 0.65};
+	}
+}
+
+TriMesh segmentationPreview(const TriMesh& mesh, const Segmentation& segmentation, Eigen::MatrixX3d* colors)
+{
+	const FeaturePoints& fp = segmentation.features;
+	const std::array<int, 13> points = {fp.headTop, fp.handLeft, fp.handRight, fp.footLeft, fp.footRight, fp.neck,
+		fp.elbowLeft, fp.elbowRight, fp.kneeLeft, fp.kneeRight, fp.perineum, fp.armpitLeft, fp.armpitRight};
+	const int n = mesh.vertexCount();
+	int markers = 0;
+	for (int p : points)
+		markers += p >= 0 && p < n ? 1 : 0;
+	TriMesh out;
+	out.V.resize(n + 6 * markers, 3);
+	out.F.resize(mesh.faceCount() + 8 * markers, 3);
+	out.V.topRows(n) = mesh.V;
+	out.F.topRows(mesh.faceCount()) = mesh.F;
+	Eigen::MatrixX3d c(out.V.rows(), 3);
+	const bool labelled = int(segmentation.labels.size()) == n;
+	for (int v = 0; v < n; ++v)
+		c.row(v) = regionColor(labelled ? segmentation.labels[size_t(v)] : Region::Whole).transpose();
+	// Octahedra of radius 1% of H: big enough to see, small enough not to hide the cut they mark.
+	const double radius = 0.01 * (segmentation.height > 0.0 ? segmentation.height : 1.0);
+	int vi = n, fi = mesh.faceCount();
+	for (size_t k = 0; k < points.size(); ++k)
+	{
+		const int p = points[k];
+		if (p < 0 || p >= n)
+			continue;
+		// End points black, middle-layer points white, inner points (perineum, armpits) magenta.
+		const Eigen::Vector3d colour = k < 5 ? Eigen::Vector3d(0.0, 0.0, 0.0)
+								: k < 10 ? Eigen::Vector3d(1.0, 1.0, 1.0) : Eigen::Vector3d(1.0, 0.0, 1.0);
+		const Eigen::RowVector3d centre = mesh.V.row(p);
+		for (int axis = 0; axis < 3; ++axis)
+		{
+			Eigen::RowVector3d offset = Eigen::RowVector3d::Zero();
+			offset(axis) = radius;
+			out.V.row(vi + 2 * axis) = centre + offset;
+			out.V.row(vi + 2 * axis + 1) = centre - offset;
+		}
+		for (int j = 0; j < 6; ++j)
+			c.row(vi + j) = colour.transpose();
+		// Vertices: 0 +x, 1 -x, 2 +y, 3 -y, 4 +z, 5 -z; eight outward-facing triangles.
+		const int tri[8][3] = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4}, {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+		for (const auto& t : tri)
+			out.F.row(fi++) << vi + t[0], vi + t[1], vi + t[2];
+		vi += 6;
+	}
+	if (colors)
+		*colors = c;
+	return out;
 }
 
 } // namespace bodyfit

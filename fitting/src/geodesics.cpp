@@ -1,0 +1,317 @@
+/// \file geodesics.cpp
+/// Dijkstra on the edge graph of a triangle mesh (+ unfolded face diagonals), CSR storage, reused binary heap.
+
+#include "bodyfit/geodesics.h"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+
+namespace bodyfit
+{
+
+namespace
+{
+
+struct WeightedEdge
+{
+	int a, b;      ///< a < b
+	double length;
+	char mesh;     ///< 1 = mesh edge
+};
+
+/// Length of the unfolded diagonal c-d across the shared edge ab of triangles (a, b, c) and (b, a, d), or a negative
+/// value when the unfolded quad is not convex (the straight segment would leave the two triangles).
+double unfoldedDiagonal(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+	const Eigen::Vector3d& d)
+{
+	const Eigen::Vector3d ab = b - a;
+	const double lab = ab.norm();
+	if (!(lab > 0.0))
+		return -1.0;
+	const Eigen::Vector3d ex = ab / lab;
+	// 2D coordinates in the plane of the unfolding: a = (0, 0), b = (lab, 0), c above the axis, d below it.
+	const Eigen::Vector3d ac = c - a, ad = d - a;
+	const double cx = ac.dot(ex), cy = (ac - cx * ex).norm();
+	const double dx = ad.dot(ex), dy = -(ad - dx * ex).norm();
+	if (!(cy > 0.0) || !(dy < 0.0))
+		return -1.0;
+	// Where the segment c-d crosses the x axis; it must lie strictly inside the edge.
+	const double t = cy / (cy - dy);
+	const double x = cx + t * (dx - cx);
+	if (!(x > 0.0 && x < lab))
+		return -1.0;
+	return std::hypot(cx - dx, cy - dy);
+}
+
+} // namespace
+
+GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& options)
+{
+	const int n = mesh.vertexCount();
+	const int m = mesh.faceCount();
+
+	// Half-edges a -> b (with the vertex opposite them in their face) grouped by a, by counting sort: O(F), no
+	// global sort. A vertex has a handful of half-edges, so twin lookups scan a short list.
+	std::vector<int> heOffset(static_cast<size_t>(n) + 1, 0);
+	auto valid = [&](int f) {
+		for (int k = 0; k < 3; ++k)
+		{
+			const int v = mesh.F(f, k);
+			if (v < 0 || v >= n || v == mesh.F(f, (k + 1) % 3))
+				return false;
+		}
+		return true;
+	};
+	for (int f = 0; f < m; ++f)
+		if (valid(f))
+			for (int k = 0; k < 3; ++k)
+				++heOffset[size_t(mesh.F(f, k)) + 1];
+	for (int v = 0; v < n; ++v)
+		heOffset[size_t(v) + 1] += heOffset[size_t(v)];
+	struct HalfEdge
+	{
+		int to, opposite;
+	};
+	std::vector<HalfEdge> halfEdges(static_cast<size_t>(heOffset[size_t(n)]));
+	{
+		std::vector<int> fill(heOffset.begin(), heOffset.end() - 1);
+		for (int f = 0; f < m; ++f)
+		{
+			if (!valid(f))
+				continue;
+			for (int k = 0; k < 3; ++k)
+				halfEdges[size_t(fill[size_t(mesh.F(f, k))]++)] = {mesh.F(f, (k + 1) % 3), mesh.F(f, (k + 2) % 3)};
+		}
+	}
+	// Number of half-edges a -> b, and the opposite vertex of the last one found.
+	auto find = [&](int a, int b, int* opposite) {
+		int count = 0;
+		for (int i = heOffset[size_t(a)]; i < heOffset[size_t(a) + 1]; ++i)
+		{
+			if (halfEdges[size_t(i)].to == b)
+			{
+				++count;
+				*opposite = halfEdges[size_t(i)].opposite;
+			}
+		}
+		return count;
+	};
+
+	std::vector<WeightedEdge> edges;
+	edges.reserve(halfEdges.size() * (options.faceDiagonals ? 2 : 1));
+	for (int a = 0; a < n; ++a)
+	{
+		for (int i = heOffset[size_t(a)]; i < heOffset[size_t(a) + 1]; ++i)
+		{
+			const int b = halfEdges[size_t(i)].to;
+			int d = -1;
+			const int twins = find(b, a, &d);
+			// Each undirected edge once: from its smaller end, or from the only side that has a half-edge.
+			if (a > b && twins > 0)
+				continue;
+			const Eigen::Vector3d pa = mesh.V.row(a).transpose(), pb = mesh.V.row(b).transpose();
+			edges.push_back({std::min(a, b), std::max(a, b), (pa - pb).norm(), 1});
+			// A manifold interior edge has exactly one half-edge each way; others get no diagonal.
+			int c = -1;
+			if (options.faceDiagonals && twins == 1 && find(a, b, &c) == 1 && c != d)
+			{
+				const double len = unfoldedDiagonal(pa, pb, mesh.V.row(c).transpose(), mesh.V.row(d).transpose());
+				if (len > 0.0)
+					edges.push_back({std::min(c, d), std::max(c, d), len, 0});
+			}
+		}
+	}
+
+	// CSR adjacency; then one record per vertex pair (the shortest; a mesh edge wins a tie), sorted by neighbour.
+	std::vector<int> degree(static_cast<size_t>(n) + 1, 0);
+	for (const WeightedEdge& e : edges)
+	{
+		++degree[size_t(e.a) + 1];
+		++degree[size_t(e.b) + 1];
+	}
+	for (int v = 0; v < n; ++v)
+		degree[size_t(v) + 1] += degree[size_t(v)];
+	struct Entry
+	{
+		int to;
+		double length;
+		char mesh;
+	};
+	std::vector<Entry> entries(edges.size() * 2);
+	{
+		std::vector<int> fill(degree.begin(), degree.end() - 1);
+		for (const WeightedEdge& e : edges)
+		{
+			entries[size_t(fill[size_t(e.a)]++)] = {e.b, e.length, e.mesh};
+			entries[size_t(fill[size_t(e.b)]++)] = {e.a, e.length, e.mesh};
+		}
+	}
+	offsets_.assign(static_cast<size_t>(n) + 1, 0);
+	targets_.clear();
+	weights_.clear();
+	isMeshEdge_.clear();
+	targets_.reserve(entries.size());
+	weights_.reserve(entries.size());
+	isMeshEdge_.reserve(entries.size());
+	for (int v = 0; v < n; ++v)
+	{
+		const auto first = entries.begin() + degree[size_t(v)], last = entries.begin() + degree[size_t(v) + 1];
+		std::sort(first, last, [](const Entry& x, const Entry& y) {
+			if (x.to != y.to)
+				return x.to < y.to;
+			if (x.length != y.length)
+				return x.length < y.length;
+			return x.mesh > y.mesh;
+		});
+		for (auto it = first; it != last; ++it)
+		{
+			if (it != first && it->to == (it - 1)->to)
+				continue;
+			targets_.push_back(it->to);
+			weights_.push_back(it->length);
+			isMeshEdge_.push_back(it->mesh);
+		}
+		offsets_[size_t(v) + 1] = int(targets_.size());
+	}
+	heap_.reserve(static_cast<size_t>(n));
+}
+
+namespace
+{
+
+/// Indexed 4-ary min-heap on (distance, vertex) with decrease-key: every vertex is in the heap at most once, so
+/// there are no stale entries. The vertex index breaks ties, so the pop order never depends on heap internals.
+struct VertexHeap
+{
+	std::vector<std::pair<double, int>>& items;
+	std::vector<int>& position; ///< index in `items` per vertex, -1 when not in the heap
+
+	static bool less(const std::pair<double, int>& x, const std::pair<double, int>& y) { return x < y; }
+
+	void place(size_t i, const std::pair<double, int>& item)
+	{
+		items[i] = item;
+		position[size_t(item.second)] = int(i);
+	}
+	void siftUp(size_t i, std::pair<double, int> item)
+	{
+		while (i > 0)
+		{
+			const size_t parent = (i - 1) / 4;
+			if (!less(item, items[parent]))
+				break;
+			place(i, items[parent]);
+			i = parent;
+		}
+		place(i, item);
+	}
+	void siftDown(size_t i, std::pair<double, int> item)
+	{
+		const size_t size = items.size();
+		for (;;)
+		{
+			const size_t first = 4 * i + 1;
+			if (first >= size)
+				break;
+			size_t best = first;
+			const size_t last = std::min(first + 4, size);
+			for (size_t c = first + 1; c < last; ++c)
+				if (less(items[c], items[best]))
+					best = c;
+			if (!less(items[best], item))
+				break;
+			place(i, items[best]);
+			i = best;
+		}
+		place(i, item);
+	}
+	/// Inserts v or lowers its key.
+	void push(double key, int v)
+	{
+		const int at = position[size_t(v)];
+		if (at < 0)
+		{
+			items.emplace_back(key, v);
+			siftUp(items.size() - 1, {key, v});
+		}
+		else
+			siftUp(size_t(at), {key, v});
+	}
+	std::pair<double, int> pop()
+	{
+		const std::pair<double, int> top = items.front();
+		position[size_t(top.second)] = -1;
+		const std::pair<double, int> last = items.back();
+		items.pop_back();
+		if (!items.empty())
+			siftDown(0, last);
+		return top;
+	}
+};
+
+} // namespace
+
+void GeodesicSolver::compute(const std::vector<int>& sources, std::vector<double>& distances,
+	std::vector<int>* predecessors, double maxDistance)
+{
+	const int n = vertexCount();
+	distances.assign(size_t(n), kInfinity);
+	if (predecessors)
+		predecessors->assign(size_t(n), -1);
+	heap_.clear();
+	heapPosition_.assign(size_t(n), -1);
+	VertexHeap heap{heap_, heapPosition_};
+	for (int s : sources)
+	{
+		if (s < 0 || s >= n || distances[size_t(s)] == 0.0)
+			continue;
+		distances[size_t(s)] = 0.0;
+		heap.push(0.0, s);
+	}
+	while (!heap_.empty())
+	{
+		const auto [d, v] = heap.pop();
+		for (int k = offsets_[size_t(v)]; k < offsets_[size_t(v) + 1]; ++k)
+		{
+			const int w = targets_[size_t(k)];
+			const double dw = d + weights_[size_t(k)];
+			if (dw < distances[size_t(w)] && dw <= maxDistance)
+			{
+				distances[size_t(w)] = dw;
+				if (predecessors)
+					(*predecessors)[size_t(w)] = v;
+				heap.push(dw, w);
+			}
+		}
+	}
+}
+
+void GeodesicSolver::compute(int source, std::vector<double>& distances, std::vector<int>* predecessors,
+	double maxDistance)
+{
+	compute(std::vector<int>{source}, distances, predecessors, maxDistance);
+}
+
+std::vector<int> tracePath(const std::vector<int>& predecessors, int target)
+{
+	std::vector<int> path;
+	if (target < 0 || target >= int(predecessors.size()))
+		return path;
+	for (int v = target; v >= 0 && path.size() <= predecessors.size(); v = predecessors[size_t(v)])
+		path.push_back(v);
+	std::reverse(path.begin(), path.end());
+	return path;
+}
+
+std::vector<double> geodesicDistances(const TriMesh& mesh, const std::vector<int>& sources,
+	const GeodesicOptions& options)
+{
+	GeodesicSolver solver(mesh, options);
+	std::vector<double> distances;
+	solver.compute(sources, distances);
+	return distances;
+}
+
+} // namespace bodyfit
