@@ -11,6 +11,7 @@ after Bullet's soft-body position solve, through a btDefaultSoftBodySolver subcl
 #include "BulletSoftBody/btSoftBody.h"
 #include "BulletSoftBody/btSoftRigidDynamicsWorld.h"
 #include "LinearMath/btAlignedObjectArray.h"
+#include "LinearMath/btTransformUtil.h"
 
 #include "btEllipsoidCompoundShape.h"
 
@@ -120,6 +121,10 @@ public:
 	void beginSubstep(btScalar dt);
 	void endSubstep();
 
+	/// Forget the body's previous pose: call after teleporting the body, so the next substep does not treat the
+	/// jump as motion that sweeps the cloth along.
+	void resetBodyPose();
+
 	~btEllipsoidClothCollider();
 
 private:
@@ -131,14 +136,32 @@ private:
 	btEllipsoidCompoundShape* m_ownedCompound; ///< wraps a bare btEllipsoidShape body shape
 	const btEllipsoidCompoundShape* m_compound;
 	btEllipsoidWorldCache m_current;
-	btTransform m_previousPose;     ///< body pose at the end of the previous substep
-	btTransform m_currentPose;      ///< body pose for this substep
-	btTransform m_lastSeenWorldTransform;
+	btTransform m_previousPose;           ///< body pose used in the previous substep
+	btTransform m_currentPose;            ///< body pose for this substep
+	btTransform m_lastSeenWorldTransform; ///< kinematic bodies: world transform seen at the last step start
+	btTransform m_delta;                  ///< previous pose -> current pose (world to world)
+	btTransform m_deltaInverse;
+	btTransform m_stepStart;              ///< kinematic interpolation: pose at the start of the current step
+	btTransform m_stepTarget;             ///< kinematic interpolation: pose at its end
 	bool m_havePose;
+	bool m_moving;
+	int m_substepIndex;
+	int m_substepCount;
+	btScalar m_substepDt;
 	btEllipsoidClothStats m_lastStats;
 	btEllipsoidClothStats m_accumulatedStats;
 	btAlignedObjectArray<int> m_candidates;
 	btAlignedObjectArray<btScalar> m_intervals;
+	btAlignedObjectArray<int> m_intervalOwner;
+
+	btTransform interpolatedKinematicPose();
+	void ensureResponseDisabled(btSoftBody* softBody);
+	btVector3 bodyVelocityAt(const btVector3& worldPoint, btScalar dt) const;
+	void applyVelocityRule(btSoftBody::Node& node, const btVector3& surfacePoint, const btVector3& normal,
+						   const btVector3& start, const btVector3& center, btScalar dt) const;
+	btScalar unionExitAlongRay(const btVector3& origin, const btVector3& dir, btScalar skin, int* exitEllipsoid);
+	btScalar minZetaAll(const btVector3& p) const;
+	btScalar pushOut(btSoftBody::Node& node, const btVector3& from, const btVector3& start, btScalar dt);
 };
 
 /// btDefaultSoftBodySolver that runs every installed btEllipsoidClothCollider after the soft-body solve of each

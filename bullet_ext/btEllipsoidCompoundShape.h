@@ -27,6 +27,16 @@ btEllipsoidLocalData
 	btMatrix3x3 m_Q;      ///< R diag(1/a^2) R^T
 	btVector3 m_aabbMin;  ///< tight local box
 	btVector3 m_aabbMax;
+
+	btEllipsoidLocalData()
+		: m_center(0, 0, 0),
+		  m_basis(btMatrix3x3::getIdentity()),
+		  m_semiAxes(1, 1, 1),
+		  m_Q(btMatrix3x3::getIdentity()),
+		  m_aabbMin(-1, -1, -1),
+		  m_aabbMax(1, 1, 1)
+	{
+	}
 };
 
 /// A btCompoundShape whose children are btEllipsoidShape (centre and rotation in the child transform).
@@ -110,6 +120,15 @@ public:
 		btMatrix3x3 m_unwhiten; ///< R_world diag(a)
 		btVector3 m_aabbMin;
 		btVector3 m_aabbMax;
+
+		Entry()
+			: m_center(0, 0, 0),
+			  m_whiten(btMatrix3x3::getIdentity()),
+			  m_unwhiten(btMatrix3x3::getIdentity()),
+			  m_aabbMin(-1, -1, -1),
+			  m_aabbMax(1, 1, 1)
+		{
+		}
 	};
 
 	btEllipsoidWorldCache();
@@ -153,6 +172,16 @@ private:
 	mutable unsigned m_stampCounter;
 
 	void buildGrid();
+	/// Cell index along axis k of a world coordinate, clamped to the grid (NaN and huge values included).
+	int cellCoord(btScalar value, int k) const
+	{
+		const btScalar f = (value - m_gridOrigin[k]) * m_invCell;
+		if (!(f > btScalar(0)))
+			return 0;
+		if (f >= btScalar(m_dims[k] - 1))
+			return m_dims[k] - 1;
+		return int(f);
+	}
 	friend class btEllipsoidClothCollider;
 };
 

@@ -21,7 +21,9 @@ btEllipsoidShape: a convex, axis-aligned solid ellipsoid for Bullet's GJK/EPA, r
 /// Bullet convention for the margin: GJK works on the core ellipsoid with semi-axes
 /// c = a * localScaling - margin and adds a sphere of radius `margin` back. The result E(c) + B(margin)
 /// equals the true ellipsoid on the three axes and is slightly fatter in between; it is exact for a sphere.
-/// The margin is clamped to half the smallest scaled semi-axis so the core never degenerates.
+/// The margin is clamped to half the smallest scaled semi-axis so the core never degenerates. A sphere (three
+/// equal scaled semi-axes) uses a point core and its radius as margin, exactly like btSphereShape: GJK is exact on
+/// a point core, while on a curved core it stops at a relative tolerance (a resting body can creep by mm/s).
 /// The shape type is CUSTOM_CONVEX_SHAPE_TYPE, so Bullet dispatches it through GJK/EPA (convex-convex,
 /// convex-plane, convex-concave), ray tests use the support-function path, and soft bodies reach it through
 /// btSoftRigidCollisionAlgorithm (sparse SDF). btCollisionWorld::debugDrawObject does not draw it.
@@ -29,7 +31,8 @@ ATTRIBUTE_ALIGNED16(class)
 btEllipsoidShape : public btConvexInternalShape
 {
 protected:
-	btVector3 m_semiAxes; ///< unscaled semi-axes as given by the user
+	btVector3 m_semiAxes;       ///< unscaled semi-axes as given by the user
+	btScalar m_requestedMargin; ///< margin as requested; the effective one is clamped after each size change
 
 	void updateImplicitDimensions();
 

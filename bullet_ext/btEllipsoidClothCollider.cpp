@@ -1,0 +1,800 @@
+/*
+bodyfit: Bullet extension for ellipsoid body colliders. See btEllipsoidClothCollider.h.
+The response follows Gong et al. 2018, sec. 4: all ellipsoids hit along the node's path are found, the entry
+point nearest the start position wins (which removes the paper's Figure 6 cases 1-3), the node goes there.
+*/
+
+#include "btEllipsoidClothCollider.h"
+
+#include "BulletCollision/BroadphaseCollision/btDbvtBroadphase.h"
+#include "BulletCollision/CollisionDispatch/btCollisionDispatcher.h"
+#include "BulletDynamics/ConstraintSolver/btSequentialImpulseConstraintSolver.h"
+#include "BulletDynamics/Dynamics/btRigidBody.h"
+#include "BulletSoftBody/btSoftBodyRigidBodyCollisionConfiguration.h"
+#include "LinearMath/btQuickprof.h"
+
+#include <new>
+
+namespace
+{
+
+/// Largest number of exit-direction candidates tried when a node is pushed out of the union.
+const int kMaxPushDirections = 24;
+
+/// True if no coordinate is NaN or infinite (inf - inf and NaN - NaN are NaN).
+inline bool isFinite(const btVector3& a, const btVector3& b)
+{
+	const btScalar s = a.x() + a.y() + a.z() + b.x() + b.y() + b.z();
+	return s - s == btScalar(0);
+}
+
+inline bool transformsEqual(const btTransform& a, const btTransform& b)
+{
+	const btMatrix3x3& ba = a.getBasis();
+	const btMatrix3x3& bb = b.getBasis();
+	return a.getOrigin() == b.getOrigin() && ba[0] == bb[0] && ba[1] == bb[1] && ba[2] == bb[2];
+}
+
+inline bool boxesOverlap(const btVector3& aMin, const btVector3& aMax, const btVector3& bMin, const btVector3& bMax)
+{
+	return !(aMin.x() > bMax.x() || aMax.x() < bMin.x() || aMin.y() > bMax.y() || aMax.y() < bMin.y() ||
+			 aMin.z() > bMax.z() || aMax.z() < bMin.z());
+}
+
+/// W^T u for a matrix W stored by rows: the (unnormalised) outward normal at the point whose whitened
+/// coordinates are u (gradient of |W (p - c)|^2 is 2 W^T W (p - c)).
+inline btVector3 transposeTimes(const btMatrix3x3& w, const btVector3& u)
+{
+	return w[0] * u.x() + w[1] * u.y() + w[2] * u.z();
+}
+
+} // namespace
+
+// ---------------------------------------------------------------------------------------------------------------
+// btEllipsoidClothStats
+
+void btEllipsoidClothStats::reset()
+{
+	m_substeps = 0;
+	m_nodesTested = 0;
+	m_nodesCorrected = 0;
+	m_nodesPushedOut = 0;
+	m_nodesRepaired = 0;
+	m_collisionSeconds = 0.0;
+	m_minZeta = SIMD_INFINITY;
+	m_nonFiniteNodes = 0;
+}
+
+void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
+{
+	m_substeps += other.m_substeps;
+	m_nodesTested += other.m_nodesTested;
+	m_nodesCorrected += other.m_nodesCorrected;
+	m_nodesPushedOut += other.m_nodesPushedOut;
+	m_nodesRepaired += other.m_nodesRepaired;
+	m_collisionSeconds += other.m_collisionSeconds;
+	m_minZeta = btMin(m_minZeta, other.m_minZeta);
+	m_nonFiniteNodes += other.m_nonFiniteNodes;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// btEllipsoidClothCollider
+
+btEllipsoidClothCollider::btEllipsoidClothCollider(btCollisionObject* body, const Config& config)
+	: m_body(body),
+	  m_config(config),
+	  m_ownedCompound(0),
+	  m_compound(0),
+	  m_havePose(false),
+	  m_moving(false),
+	  m_substepIndex(0),
+	  m_substepCount(1),
+	  m_substepDt(btScalar(0))
+{
+	m_previousPose.setIdentity();
+	m_currentPose.setIdentity();
+	m_lastSeenWorldTransform.setIdentity();
+	m_delta.setIdentity();
+	m_deltaInverse.setIdentity();
+	m_stepStart.setIdentity();
+	m_stepTarget.setIdentity();
+}
+
+btEllipsoidClothCollider::~btEllipsoidClothCollider()
+{
+	if (m_ownedCompound)
+	{
+		m_ownedCompound->~btEllipsoidCompoundShape();
+		btAlignedFree(m_ownedCompound);
+	}
+}
+
+void btEllipsoidClothCollider::resetBodyPose()
+{
+	m_havePose = false;
+}
+
+btTransform btEllipsoidClothCollider::interpolatedKinematicPose()
+{
+	// A kinematic body sits at its end-of-step pose during all substeps of one stepSimulation call
+	// (btDiscreteDynamicsWorld::saveKinematicState runs once per call). Interpolate between the pose used in the
+	// previous substep and that target; the substep count is recovered from the velocity Bullet computed for the
+	// whole interval (|displacement| / |velocity|).
+	const btTransform& now = m_body->getWorldTransform();
+	if (!transformsEqual(now, m_lastSeenWorldTransform))
+	{
+		m_lastSeenWorldTransform = now;
+		m_stepStart = m_currentPose;
+		m_stepTarget = now;
+		m_substepIndex = 0;
+		m_substepCount = 1;
+		const btRigidBody* rb = btRigidBody::upcast(m_body);
+		const btScalar dt = m_substepDt;
+		btScalar duration = btScalar(0);
+		const btScalar linearSpeed = rb->getLinearVelocity().length();
+		const btScalar angularSpeed = rb->getAngularVelocity().length();
+		const btScalar distance = (now.getOrigin() - m_stepStart.getOrigin()).length();
+		btVector3 axis;
+		btScalar angle = btScalar(0);
+		btTransformUtil::calculateDiffAxisAngle(m_stepStart, now, axis, angle);
+		// Compare both motions on the same scale: a rotation by angle moves points 1 m away by about angle metres.
+		if (linearSpeed * dt > SIMD_EPSILON && distance >= angle)
+			duration = distance / linearSpeed;
+		else if (angularSpeed * dt > SIMD_EPSILON)
+			duration = btFabs(angle) / angularSpeed;
+		if (dt > btScalar(0) && duration > btScalar(0))
+		{
+			const btScalar steps = duration / dt + btScalar(0.5);
+			m_substepCount = steps >= btScalar(1e6) ? 1000000 : btMax(1, int(steps));
+		}
+	}
+	++m_substepIndex;
+	if (m_substepIndex >= m_substepCount)
+		return m_stepTarget;
+	const btScalar f = btScalar(m_substepIndex) / btScalar(m_substepCount);
+	btTransform out;
+	out.setOrigin(m_stepStart.getOrigin().lerp(m_stepTarget.getOrigin(), f));
+	btQuaternion q0, q1;
+	m_stepStart.getBasis().getRotation(q0);
+	m_stepTarget.getBasis().getRotation(q1);
+	if (q0.dot(q1) < btScalar(0))
+		q1 = -q1;
+	out.setRotation(q0.slerp(q1, f));
+	return out;
+}
+
+void btEllipsoidClothCollider::beginSubstep(btScalar dt)
+{
+	m_lastStats.reset();
+	m_lastStats.m_substeps = 1;
+	btClock clock;
+	m_substepDt = dt;
+	const btTransform& now = m_body->getWorldTransform();
+	if (!m_havePose)
+	{
+		m_previousPose = now;
+		m_currentPose = now;
+		m_lastSeenWorldTransform = now;
+		m_stepStart = now;
+		m_stepTarget = now;
+		m_substepIndex = 0;
+		m_substepCount = 1;
+		m_havePose = true;
+	}
+	else
+	{
+		// Continuity: the nodes were made valid against the pose of the previous substep.
+		m_previousPose = m_currentPose;
+		const btRigidBody* rb = btRigidBody::upcast(m_body);
+		if (rb && rb->isKinematicObject())
+			m_currentPose = interpolatedKinematicPose();
+		else
+			m_currentPose = now;
+	}
+	m_moving = !transformsEqual(m_previousPose, m_currentPose);
+	if (m_moving)
+	{
+		m_delta = m_currentPose * m_previousPose.inverse();
+		m_deltaInverse = m_delta.inverse();
+	}
+	else
+	{
+		m_delta.setIdentity();
+		m_deltaInverse.setIdentity();
+	}
+	m_current.update(m_compound, m_currentPose);
+	m_lastStats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
+}
+
+void btEllipsoidClothCollider::endSubstep()
+{
+	m_accumulatedStats.accumulate(m_lastStats);
+}
+
+void btEllipsoidClothCollider::ensureResponseDisabled(btSoftBody* softBody)
+{
+	if (!m_config.m_disableBulletResponse)
+		return;
+	btAlignedObjectArray<const btCollisionObject*>& disabled = softBody->m_collisionDisabledObjects;
+	if (disabled.findLinearSearch(m_body) == disabled.size())
+		disabled.push_back(m_body);
+}
+
+btVector3 btEllipsoidClothCollider::bodyVelocityAt(const btVector3& worldPoint, btScalar dt) const
+{
+	if (!m_moving || !(dt > btScalar(0)))
+		return btVector3(0, 0, 0);
+	return (worldPoint - m_deltaInverse * worldPoint) / dt;
+}
+
+void btEllipsoidClothCollider::applyVelocityRule(btSoftBody::Node& node, const btVector3& surfacePoint,
+												 const btVector3& normal, const btVector3& start,
+												 const btVector3& center, btScalar dt) const
+{
+	const btVector3 vb = bodyVelocityAt(surfacePoint, dt);
+	btVector3 vr = node.m_v - vb;
+	if (m_config.m_useEq10 || m_config.m_velocityRule == PAPER_EQ10)
+	{
+		// Gong et al. 2018, eq. 10: v_c = v_n |c P0| / (|c P0| + |P0 p0|).
+		const btScalar cp = (surfacePoint - center).length();
+		const btScalar pq = (start - surfacePoint).length();
+		const btScalar denom = cp + pq;
+		if (denom > btScalar(0))
+			vr *= cp / denom;
+	}
+	else
+	{
+		const btScalar vn = vr.dot(normal);
+		if (vn < btScalar(0))
+		{
+			btVector3 vt = vr - normal * vn;
+			const btScalar vtLen = vt.length();
+			const btScalar drop = btMax(m_config.m_friction, btScalar(0)) * (-vn);
+			if (vtLen <= drop)
+				vt.setValue(0, 0, 0);
+			else
+				vt *= (vtLen - drop) / vtLen;
+			vr = vt;
+		}
+	}
+	node.m_v = vb + vr;
+}
+
+btScalar btEllipsoidClothCollider::unionExitAlongRay(const btVector3& origin, const btVector3& dir, btScalar skin,
+													 int* exitEllipsoid)
+{
+	// Every ellipsoid's interval along the ray, widened by the skin on both sides; then the first uncovered
+	// parameter s >= 0 found by a sweep over the intervals sorted by start.
+	const btEllipsoidWorldCache& cache = m_current;
+	const int ne = cache.size();
+	m_intervals.resize(0);
+	m_intervalOwner.resize(0);
+	for (int k = 0; k < ne; ++k)
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[k];
+		const btVector3 u0 = e.m_whiten * (origin - e.m_center);
+		const btVector3 w = e.m_whiten * dir;
+		const btScalar a = w.length2();
+		if (!(a > btScalar(0)))
+			continue;
+		const btScalar b = u0.dot(w);
+		const btScalar c = u0.length2() - btScalar(1);
+		const btScalar disc = b * b - a * c;
+		if (disc < btScalar(0))
+			continue;
+		const btScalar sq = btSqrt(disc);
+		const btScalar s1 = (-b + sq) / a;
+		if (s1 + skin < btScalar(0))
+			continue;
+		const btScalar s0 = (-b - sq) / a;
+		m_intervals.push_back(s0 - skin);
+		m_intervals.push_back(s1 + skin);
+		m_intervalOwner.push_back(k);
+	}
+	const int count = m_intervalOwner.size();
+	// Insertion sort by start (few intervals).
+	for (int i = 1; i < count; ++i)
+	{
+		const btScalar s0 = m_intervals[2 * i], s1 = m_intervals[2 * i + 1];
+		const int owner = m_intervalOwner[i];
+		int j = i - 1;
+		while (j >= 0 && m_intervals[2 * j] > s0)
+		{
+			m_intervals[2 * j + 2] = m_intervals[2 * j];
+			m_intervals[2 * j + 3] = m_intervals[2 * j + 1];
+			m_intervalOwner[j + 1] = m_intervalOwner[j];
+			--j;
+		}
+		m_intervals[2 * j + 2] = s0;
+		m_intervals[2 * j + 3] = s1;
+		m_intervalOwner[j + 1] = owner;
+	}
+	btScalar s = btScalar(0);
+	int exit = -1;
+	for (int i = 0; i < count; ++i)
+	{
+		if (m_intervals[2 * i] > s)
+			break;
+		if (m_intervals[2 * i + 1] > s)
+		{
+			s = m_intervals[2 * i + 1];
+			exit = m_intervalOwner[i];
+		}
+	}
+	if (exitEllipsoid)
+		*exitEllipsoid = exit;
+	return s;
+}
+
+btScalar btEllipsoidClothCollider::minZetaAll(const btVector3& p) const
+{
+	const btEllipsoidWorldCache& cache = m_current;
+	btScalar best = SIMD_INFINITY;
+	for (int k = 0; k < cache.size(); ++k)
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[k];
+		if (!boxesOverlap(p, p, e.m_aabbMin, e.m_aabbMax))
+			continue;
+		best = btMin(best, (e.m_whiten * (p - e.m_center)).length2());
+	}
+	return best;
+}
+
+btScalar btEllipsoidClothCollider::pushOut(btSoftBody::Node& node, const btVector3& from, const btVector3& start,
+										   btScalar dt)
+{
+	const btEllipsoidWorldCache& cache = m_current;
+	const btScalar skin = btMax(m_config.m_skinOffset, btScalar(0));
+	// Candidate directions: for each ellipsoid containing the point, its outward normal there (the direction to
+	// its nearest surface point for shallow penetrations) and, near its centre, both ends of its shortest axis.
+	btVector3 dirs[kMaxPushDirections];
+	int ndirs = 0;
+	for (int k = 0; k < cache.size() && ndirs + 2 <= kMaxPushDirections; ++k)
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[k];
+		if (!boxesOverlap(from, from, e.m_aabbMin, e.m_aabbMax))
+			continue;
+		const btVector3 u = e.m_whiten * (from - e.m_center);
+		const btScalar z = u.length2();
+		if (!(z < btScalar(1)))
+			continue;
+		btVector3 g = transposeTimes(e.m_whiten, u);
+		const btScalar gl = g.length();
+		if (z > btScalar(1e-6) && gl > SIMD_EPSILON)
+			dirs[ndirs++] = g / gl;
+		else
+		{
+			// At the centre the gradient vanishes: leave along the shortest semi-axis (column of R diag(a)).
+			btVector3 c0(e.m_unwhiten[0][0], e.m_unwhiten[1][0], e.m_unwhiten[2][0]);
+			btVector3 c1(e.m_unwhiten[0][1], e.m_unwhiten[1][1], e.m_unwhiten[2][1]);
+			btVector3 c2(e.m_unwhiten[0][2], e.m_unwhiten[1][2], e.m_unwhiten[2][2]);
+			btVector3 shortest = c0;
+			if (c1.length2() < shortest.length2())
+				shortest = c1;
+			if (c2.length2() < shortest.length2())
+				shortest = c2;
+			shortest.normalize();
+			dirs[ndirs++] = shortest;
+			dirs[ndirs++] = -shortest;
+		}
+	}
+	if (ndirs == 0)
+		return minZetaAll(from); // not inside anything (caller's tolerance): nothing to do
+
+	btScalar bestS = SIMD_INFINITY;
+	int bestDir = -1, bestExit = -1;
+	for (int d = 0; d < ndirs; ++d)
+	{
+		int exit = -1;
+		const btScalar s = unionExitAlongRay(from, dirs[d], skin, &exit);
+		if (s < bestS)
+		{
+			bestS = s;
+			bestDir = d;
+			bestExit = exit;
+		}
+	}
+	btVector3 out = from + dirs[bestDir] * bestS;
+	// Rounding can leave the exit point a hair inside when the skin is 0: step on by a relative epsilon.
+	btScalar z = minZetaAll(out);
+	btScalar nudge = btMax(SIMD_EPSILON * btScalar(16) * (from.length() + btScalar(1)), btScalar(1e-7));
+	for (int attempt = 0; attempt < 8 && z < btScalar(1); ++attempt)
+	{
+		out += dirs[bestDir] * nudge;
+		nudge *= btScalar(4);
+		z = minZetaAll(out);
+	}
+	btVector3 normal = dirs[bestDir];
+	if (bestExit >= 0)
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[bestExit];
+		btVector3 g = transposeTimes(e.m_whiten, e.m_whiten * (out - e.m_center));
+		const btScalar gl = g.length();
+		if (gl > SIMD_EPSILON)
+			normal = g / gl;
+	}
+	const btVector3 center = bestExit >= 0 ? cache[bestExit].m_center : from;
+	applyVelocityRule(node, out - normal * skin, normal, start, center, dt);
+	node.m_x = out;
+	return z;
+}
+
+void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const btVector3* startPositions)
+{
+	btClock clock;
+	ensureResponseDisabled(softBody);
+	const btEllipsoidWorldCache& cache = m_current;
+	const int ne = cache.size();
+	btEllipsoidClothStats& stats = m_lastStats;
+	if (ne == 0 || softBody->m_nodes.size() == 0)
+		return;
+
+	const btScalar skin = btMax(m_config.m_skinOffset, btScalar(0));
+	const btVector3 skinBox(skin, skin, skin);
+	const btVector3 unionMin = cache.getAabbMin();
+	const btVector3 unionMax = cache.getAabbMax();
+	const btEllipsoidWorldCache::Entry* entries = &cache.m_entries[0];
+	const int* cellStart = &cache.m_cellStart[0];
+	const int* cellItems = cache.m_cellItems.size() ? &cache.m_cellItems[0] : 0;
+	const int dimX = cache.m_dims[0], dimXY = cache.m_dims[0] * cache.m_dims[1];
+	unsigned* stamp = &cache.m_stamp[0];
+	m_candidates.resize(ne);
+	int* cand = &m_candidates[0];
+	const bool moving = m_moving;
+	const btTransform delta = m_delta;
+
+	btScalar minZeta = stats.m_minZeta;
+	const int numNodes = softBody->m_nodes.size();
+	btSoftBody::Node* nodes = &softBody->m_nodes[0];
+	for (int i = 0; i < numNodes; ++i)
+	{
+		btSoftBody::Node& node = nodes[i];
+		if (!(node.m_im > btScalar(0)))
+			continue;
+		const btVector3 x = node.m_x;
+		btVector3 q = startPositions ? startPositions[i] : node.m_q;
+		if (!isFinite(x, q))
+		{
+			++stats.m_nonFiniteNodes;
+			continue;
+		}
+		// Start carried with the body from its previous to its current pose: the path is then straight in the
+		// body frame, and all tests run against the current world cache.
+		if (moving)
+			q = delta * q;
+		btVector3 boxMin = x, boxMax = x;
+		boxMin.setMin(q);
+		boxMax.setMax(q);
+		boxMin -= skinBox;
+		boxMax += skinBox;
+		if (!boxesOverlap(boxMin, boxMax, unionMin, unionMax))
+			continue;
+
+		// Broadphase: grid cells under the path box, each ellipsoid once (stamps), box overlap test.
+		int nc = 0;
+		{
+			const int x0 = cache.cellCoord(boxMin.x(), 0), x1 = cache.cellCoord(boxMax.x(), 0);
+			const int y0 = cache.cellCoord(boxMin.y(), 1), y1 = cache.cellCoord(boxMax.y(), 1);
+			const int z0 = cache.cellCoord(boxMin.z(), 2), z1 = cache.cellCoord(boxMax.z(), 2);
+			const bool single = x0 == x1 && y0 == y1 && z0 == z1;
+			unsigned tag = 0;
+			if (!single)
+			{
+				if (++cache.m_stampCounter == 0)
+				{
+					for (int k = 0; k < ne; ++k)
+						stamp[k] = 0;
+					cache.m_stampCounter = 1;
+				}
+				tag = cache.m_stampCounter;
+			}
+			for (int cz = z0; cz <= z1; ++cz)
+				for (int cy = y0; cy <= y1; ++cy)
+					for (int cx = x0; cx <= x1; ++cx)
+					{
+						const int c = cz * dimXY + cy * dimX + cx;
+						for (int j = cellStart[c]; j < cellStart[c + 1]; ++j)
+						{
+							const int k = cellItems[j];
+							if (!single)
+							{
+								if (stamp[k] == tag)
+									continue;
+								stamp[k] = tag;
+							}
+							const btEllipsoidWorldCache::Entry& e = entries[k];
+							if (boxesOverlap(boxMin, boxMax, e.m_aabbMin, e.m_aabbMax))
+								cand[nc++] = k;
+						}
+					}
+		}
+		if (nc == 0)
+			continue;
+		++stats.m_nodesTested;
+
+		// Narrow phase in whitened coordinates u = W (p - c): the ellipsoid is the unit ball and the path stays
+		// a segment, so the entry parameter is the smaller root of |u_q + t (u_x - u_q)|^2 = 1.
+		int best = -1;
+		btScalar tBest = btScalar(2);
+		btVector3 uBest(0, 0, 0);
+		bool startInside = false;
+		btScalar zMinX = SIMD_INFINITY;
+		for (int j = 0; j < nc; ++j)
+		{
+			const btEllipsoidWorldCache::Entry& e = entries[cand[j]];
+			const btVector3 ux = e.m_whiten * (x - e.m_center);
+			const btVector3 uq = e.m_whiten * (q - e.m_center);
+			const btScalar zx = ux.length2();
+			const btScalar zq = uq.length2();
+			zMinX = btMin(zMinX, zx);
+			if (zq <= btScalar(1))
+			{
+				startInside = true;
+				continue;
+			}
+			const btVector3 d = ux - uq;
+			const btScalar b = uq.dot(d);
+			btScalar t = btScalar(2);
+			if (b < btScalar(0))
+			{
+				const btScalar a = d.length2();
+				const btScalar c = zq - btScalar(1);
+				const btScalar disc = b * b - a * c;
+				if (disc >= btScalar(0))
+					t = c / (btSqrt(disc) - b); // smaller root, cancellation-free form
+			}
+			if (t > btScalar(1) && zx < btScalar(1))
+				t = btScalar(1); // the end is inside but rounding lost the root
+			if (t <= btScalar(1) && t < tBest)
+			{
+				tBest = t;
+				best = cand[j];
+				uBest = uq + d * t;
+			}
+		}
+
+		if (startInside)
+		{
+			// The body moved into the node (or it started inside). If the solve already brought it out, keep it.
+			if (zMinX >= btScalar(1))
+			{
+				minZeta = btMin(minZeta, zMinX);
+				continue;
+			}
+			++stats.m_nodesPushedOut;
+			minZeta = btMin(minZeta, pushOut(node, x, q, dt));
+			continue;
+		}
+		if (best < 0)
+		{
+			minZeta = btMin(minZeta, zMinX);
+			continue;
+		}
+
+		// Earliest entry: the surface point (exactly on the unit sphere in whitened space), then the skin.
+		++stats.m_nodesCorrected;
+		const btEllipsoidWorldCache::Entry& e = entries[best];
+		const btScalar ul = uBest.length();
+		const btVector3 uHit = ul > btScalar(0) ? uBest / ul : btVector3(1, 0, 0);
+		const btVector3 surface = e.m_center + e.m_unwhiten * uHit;
+		btVector3 normal = transposeTimes(e.m_whiten, uHit);
+		normal.normalize(); // |W^T u| >= 1 / max(a) > 0 for |u| = 1
+		const btVector3 placed = surface + normal * skin;
+		applyVelocityRule(node, surface, normal, q, e.m_center, dt);
+		node.m_x = placed;
+
+		// Guarantee: the placed node must be outside every nearby ellipsoid (a crease can put the skin offset
+		// inside a neighbour). The candidates cover the path box grown by the skin, which contains `placed`.
+		btScalar zPlaced = SIMD_INFINITY;
+		for (int j = 0; j < nc; ++j)
+		{
+			const btEllipsoidWorldCache::Entry& ej = entries[cand[j]];
+			zPlaced = btMin(zPlaced, (ej.m_whiten * (placed - ej.m_center)).length2());
+		}
+		if (zPlaced < btScalar(1))
+		{
+			++stats.m_nodesRepaired;
+			zPlaced = pushOut(node, placed, q, dt);
+		}
+		minZeta = btMin(minZeta, zPlaced);
+	}
+	stats.m_minZeta = minZeta;
+	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
+}
+
+btEllipsoidClothCollider* btEllipsoidClothCollider::install(btSoftRigidDynamicsWorld* world, btCollisionObject* body,
+															 const Config& config, const char** whyNot)
+{
+	const char* dummy = 0;
+	const char** reason = whyNot ? whyNot : &dummy;
+	*reason = 0;
+	if (!world)
+	{
+		*reason = "btEllipsoidClothCollider::install: world is null";
+		return 0;
+	}
+	if (!body || !body->getCollisionShape())
+	{
+		*reason = "btEllipsoidClothCollider::install: body is null or has no collision shape";
+		return 0;
+	}
+
+	// Which soft-body solver does the world use? btSoftRigidDynamicsWorld keeps it private, but addSoftBody
+	// hands it to every soft body: read it from an existing one, or from a temporary empty soft body.
+	btSoftBodySolver* solver = 0;
+	if (world->getSoftBodyArray().size() > 0)
+		solver = world->getSoftBodyArray()[0]->getSoftBodySolver();
+	else
+	{
+		btSoftBody probe(&world->getWorldInfo(), 0, 0, 0);
+		world->addSoftBody(&probe);
+		solver = probe.getSoftBodySolver();
+		world->removeSoftBody(&probe);
+	}
+	btEllipsoidClothSoftBodySolver* ours = dynamic_cast<btEllipsoidClothSoftBodySolver*>(solver);
+	if (!ours)
+	{
+		*reason = "btEllipsoidClothCollider::install: the world was not created with a btEllipsoidClothSoftBodySolver "
+				  "(pass one as the 5th btSoftRigidDynamicsWorld argument, or use btEllipsoidClothWorld)";
+		return 0;
+	}
+	for (int i = 0; i < ours->m_colliders.size(); ++i)
+		if (ours->m_colliders[i]->m_body == body)
+		{
+			*reason = "btEllipsoidClothCollider::install: a collider is already installed for this body";
+			return 0;
+		}
+
+	btCollisionShape* shape = body->getCollisionShape();
+	btEllipsoidCompoundShape* compound = dynamic_cast<btEllipsoidCompoundShape*>(shape);
+	btEllipsoidCompoundShape* owned = 0;
+	if (!compound)
+	{
+		btEllipsoidShape* single = dynamic_cast<btEllipsoidShape*>(shape);
+		if (!single)
+		{
+			*reason = "btEllipsoidClothCollider::install: the body's shape is neither a btEllipsoidCompoundShape nor "
+					  "a btEllipsoidShape";
+			return 0;
+		}
+		void* mem = btAlignedAlloc(sizeof(btEllipsoidCompoundShape), 16);
+		owned = new (mem) btEllipsoidCompoundShape(single->getMargin());
+		owned->addEllipsoid(btVector3(0, 0, 0), btMatrix3x3::getIdentity(), single->getScaledSemiAxes());
+		compound = owned;
+	}
+	if (compound->getNumEllipsoids() == 0 || compound->getNumChildShapes() != compound->getNumEllipsoids())
+	{
+		if (owned)
+		{
+			owned->~btEllipsoidCompoundShape();
+			btAlignedFree(owned);
+		}
+		*reason = compound->getNumEllipsoids() == 0
+					  ? "btEllipsoidClothCollider::install: the compound has no ellipsoids"
+					  : "btEllipsoidClothCollider::install: the compound has children that are not ellipsoids "
+						"(added with addChildShape instead of addEllipsoid)";
+		return 0;
+	}
+
+	void* mem = btAlignedAlloc(sizeof(btEllipsoidClothCollider), 16);
+	btEllipsoidClothCollider* collider = new (mem) btEllipsoidClothCollider(body, config);
+	collider->m_ownedCompound = owned;
+	collider->m_compound = compound;
+	ours->m_colliders.push_back(collider);
+	btAlignedObjectArray<btSoftBody*>& softBodies = world->getSoftBodyArray();
+	for (int i = 0; i < softBodies.size(); ++i)
+		collider->ensureResponseDisabled(softBodies[i]);
+	return collider;
+}
+
+bool btEllipsoidClothCollider::uninstall(btSoftRigidDynamicsWorld* world, btEllipsoidClothCollider* collider)
+{
+	if (!world || !collider)
+		return false;
+	btAlignedObjectArray<btSoftBody*>& softBodies = world->getSoftBodyArray();
+	btEllipsoidClothSoftBodySolver* ours = 0;
+	if (softBodies.size() > 0)
+		ours = dynamic_cast<btEllipsoidClothSoftBodySolver*>(softBodies[0]->getSoftBodySolver());
+	else
+	{
+		btSoftBody probe(&world->getWorldInfo(), 0, 0, 0);
+		world->addSoftBody(&probe);
+		ours = dynamic_cast<btEllipsoidClothSoftBodySolver*>(probe.getSoftBodySolver());
+		world->removeSoftBody(&probe);
+	}
+	if (!ours)
+		return false;
+	const int index = ours->m_colliders.findLinearSearch(collider);
+	if (index == ours->m_colliders.size())
+		return false;
+	ours->m_colliders.removeAtIndex(index);
+	if (collider->m_config.m_disableBulletResponse)
+		for (int i = 0; i < softBodies.size(); ++i)
+			softBodies[i]->m_collisionDisabledObjects.remove(collider->m_body);
+	collider->~btEllipsoidClothCollider();
+	btAlignedFree(collider);
+	return true;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// btEllipsoidClothSoftBodySolver
+
+btEllipsoidClothSoftBodySolver::btEllipsoidClothSoftBodySolver()
+{
+}
+
+btEllipsoidClothSoftBodySolver::~btEllipsoidClothSoftBodySolver()
+{
+	for (int i = 0; i < m_colliders.size(); ++i)
+	{
+		m_colliders[i]->~btEllipsoidClothCollider();
+		btAlignedFree(m_colliders[i]);
+	}
+	m_colliders.clear();
+}
+
+void btEllipsoidClothSoftBodySolver::predictMotion(btScalar solverdt)
+{
+	btDefaultSoftBodySolver::predictMotion(solverdt);
+	// With drift iterations (diterations > 0) btSoftBody::solveConstraints overwrites m_q mid-solve, so the start
+	// of the substep is saved here (predictMotion has just set q = x_start).
+	m_startPositions.resize(m_softBodySet.size());
+	if (m_colliders.size() == 0)
+		return;
+	for (int b = 0; b < m_softBodySet.size(); ++b)
+	{
+		btSoftBody* psb = m_softBodySet[b];
+		btAlignedObjectArray<btVector3>& starts = m_startPositions[b];
+		if (psb->m_cfg.diterations <= 0)
+		{
+			starts.resize(0);
+			continue;
+		}
+		starts.resize(psb->m_nodes.size());
+		for (int i = 0; i < psb->m_nodes.size(); ++i)
+			starts[i] = psb->m_nodes[i].m_q;
+	}
+}
+
+void btEllipsoidClothSoftBodySolver::solveConstraints(btScalar solverdt)
+{
+	btDefaultSoftBodySolver::solveConstraints(solverdt);
+	for (int c = 0; c < m_colliders.size(); ++c)
+	{
+		btEllipsoidClothCollider* collider = m_colliders[c];
+		collider->beginSubstep(solverdt);
+		for (int b = 0; b < m_softBodySet.size(); ++b)
+		{
+			btSoftBody* psb = m_softBodySet[b];
+			const bool haveStarts = b < m_startPositions.size() &&
+									m_startPositions[b].size() == psb->m_nodes.size() && psb->m_nodes.size() > 0;
+			collider->collide(psb, solverdt, haveStarts ? &m_startPositions[b][0] : 0);
+		}
+		collider->endSubstep();
+	}
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// btEllipsoidClothWorld
+
+btEllipsoidClothWorld::btEllipsoidClothWorld()
+{
+	m_collisionConfiguration = new btSoftBodyRigidBodyCollisionConfiguration();
+	m_dispatcher = new btCollisionDispatcher(m_collisionConfiguration);
+	m_broadphase = new btDbvtBroadphase();
+	m_constraintSolver = new btSequentialImpulseConstraintSolver();
+	m_softBodySolver = new btEllipsoidClothSoftBodySolver();
+	m_world = new btSoftRigidDynamicsWorld(m_dispatcher, m_broadphase, m_constraintSolver, m_collisionConfiguration,
+										   m_softBodySolver);
+	m_world->getWorldInfo().m_sparsesdf.Initialize();
+}
+
+btEllipsoidClothWorld::~btEllipsoidClothWorld()
+{
+	delete m_world;
+	delete m_softBodySolver;
+	delete m_constraintSolver;
+	delete m_broadphase;
+	delete m_dispatcher;
+	delete m_collisionConfiguration;
+}
