@@ -420,20 +420,27 @@ std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options,
 			return "two extremities besides the feet touch the ground (four legs?)";
 	}
 
-	// Perineum: on the geodesic path between the toe tips, the highest vertex of its middle part (the paper takes
-	// the half-way point; the highest point is the crotch itself even when the legs are not symmetric).
+	// Perineum: the paper takes the half-way point of the geodesic between the toe tips. We take the highest vertex
+	// on the middle part of the shortest toe-to-toe paths (the crotch itself, also when the legs are not
+	// symmetric). "On a shortest path" = d_left + d_right within 0.5% H of the toe-to-toe distance: a set, not one
+	// traced path, so the choice does not depend on which foot the path is traced from (mirror symmetry).
 	const double toeToToe = footL.d[size_t(fp.footRight)];
 	if (!std::isfinite(toeToToe))
 		return "the feet are not connected";
 	{
-		const std::vector<int> path = tracePath(footL.pred, fp.footRight);
-		double best = -std::numeric_limits<double>::infinity();
-		for (int v : path)
+		// Ties (a mirror pair at the same height) are broken by geometry, never by vertex index: nearer the middle
+		// of the path, then larger x.
+		std::array<double, 3> best = {-std::numeric_limits<double>::infinity(), 0.0, 0.0};
+		for (int v = 0; v < n; ++v)
 		{
-			const double s = footL.d[size_t(v)] / toeToToe;
-			if (s >= 0.3 && s <= 0.7 && y(v) > best)
+			const double dl = footL.d[size_t(v)], dr = footR.d[size_t(v)];
+			if (!(dl + dr <= toeToToe + 0.005 * H))
+				continue;
+			const double s = dl / (dl + dr);
+			const std::array<double, 3> key = {y(v), -std::abs(dl - dr), mesh.V(v, 0)};
+			if (s >= 0.3 && s <= 0.7 && key > best)
 			{
-				best = y(v);
+				best = key;
 				fp.perineum = v;
 			}
 		}
@@ -650,7 +657,10 @@ std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options,
 		{
 			const Eigen::Vector3d p = vertex(mesh, v);
 			const double s = (p - base).dot(axis) / axisLength2;
-			const bool left = (p - midpoint).dot(sideNormal) > 0.0;
+			// A vertex exactly on the mid-sagittal plane (the midline of a symmetric mesh) goes to the side of the
+			// geodesically nearer hand; an exact tie there too (a mirror-symmetric edge graph) goes right.
+			const double side = (p - midpoint).dot(sideNormal);
+			const bool left = side != 0.0 ? side > 0.0 : handL.d[size_t(v)] < handR.d[size_t(v)];
 			if (s < options.waistFraction)
 				labels[size_t(v)] = left ? Region::TorsoLowerLeft : Region::TorsoLowerRight;
 			else if (s < options.chestFraction)
