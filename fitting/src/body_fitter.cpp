@@ -115,6 +115,7 @@ struct Group
 	std::vector<int> assignment;   ///< cluster of every point
 	std::vector<double> lowerBounds; ///< K-means warm-start bounds for `centers`
 	std::vector<Cluster> clusters;
+	bool localSplits = false;      ///< bisect with 2-means on the split cluster only (the generic whole-mesh path)
 };
 
 class Refiner
@@ -151,55 +152,112 @@ public:
 			fitCluster(g, c);
 	}
 
-	/// Bisects cluster w (paper step b-d). Returns false, leaving the group untouched, when the split empties a
-	/// cluster or does not lower the worst error among the clusters it changed.
-	bool trySplit(Group& g, int w)
+	/// Seeds for splitting cluster w: the two end points of one of its axes (`axisRank` 0 = longest, the paper), or
+	/// with `quad` the four end points of its two longest axes.
+	static std::vector<Eigen::Vector3d> splitSeeds(const Cluster& c, int axisRank, bool quad)
+	{
+		const Ellipsoid& e = c.fit.ellipsoid;
+		std::array<Eigen::Index, 3> order = {0, 1, 2};
+		std::stable_sort(order.begin(), order.end(),
+						 [&](Eigen::Index a, Eigen::Index b) { return e.radii(a) > e.radii(b); });
+		std::vector<Eigen::Vector3d> seeds;
+		for (int r = quad ? 0 : axisRank; r <= (quad ? 1 : axisRank); ++r)
+		{
+			const Eigen::Index axis = order[std::size_t(r)];
+			const Eigen::Vector3d half = e.rotation.col(axis) * e.radii(axis);
+			seeds.push_back(e.center + half);
+			seeds.push_back(e.center - half);
+		}
+		return seeds;
+	}
+
+	/// Splits cluster w into seeds.size() clusters (paper steps b-d): w keeps the first, the others are appended.
+	/// Returns false, leaving the group untouched, when a cluster ends up empty or when the split lowers neither
+	/// the worst nor the summed (vertex-weighted) error E_j of the clusters whose points changed.
+	bool trySplit(Group& g, int w, const std::vector<Eigen::Vector3d>& seeds)
 	{
 		const int k = int(g.clusters.size());
-		const Ellipsoid& e = g.clusters[std::size_t(w)].fit.ellipsoid;
-		Eigen::Index axis = 0;
-		e.radii.maxCoeff(&axis); // first of equal maxima: deterministic
-		const Eigen::Vector3d halfAxis = e.rotation.col(axis) * e.radii(axis);
+		const int m = int(seeds.size());
+		const Cluster& src = g.clusters[std::size_t(w)];
+		auto slot = [&](int s) { return s == 0 ? w : k + s - 1; }; // cluster index of seed s
 
-		Eigen::MatrixX3d centers(k + 1, 3);
-		centers.topRows(k) = g.centers;
-		centers.row(w) = (e.center + halfAxis).transpose();
-		centers.row(k) = (e.center - halfAxis).transpose();
-		std::vector<bool> moved(std::size_t(k + 1), false);
-		moved[std::size_t(w)] = moved[std::size_t(k)] = true;
-		KMeansWarmStart warm;
-		warm.assignment = &g.assignment;
-		warm.lowerBounds = &g.lowerBounds;
-		warm.moved = &moved;
+		KMeansResult km;
+		if (g.localSplits)
+		{
+			// Classic bisecting step: m-means on the cluster's own points; the other clusters keep theirs.
+			buffer_.resize(Eigen::Index(src.members.size()), 3);
+			for (std::size_t r = 0; r < src.members.size(); ++r)
+				buffer_.row(Eigen::Index(r)) = g.points.row(src.members[r]);
+			Eigen::MatrixX3d init(m, 3);
+			for (int s = 0; s < m; ++s)
+				init.row(s) = seeds[std::size_t(s)].transpose();
+			Clock::time_point t0 = Clock::now();
+			const KMeansResult local = kMeans(buffer_, init, kmeans_);
+			kmeansMs += msSince(t0);
+			if (local.emptyClusters > 0)
+				return false;
+			km.assignment = g.assignment;
+			for (std::size_t r = 0; r < src.members.size(); ++r)
+				km.assignment[std::size_t(src.members[r])] = slot(local.assignment[r]);
+			km.centers.resize(k + m - 1, 3);
+			km.centers.topRows(k) = g.centers;
+			for (int s = 0; s < m; ++s)
+				km.centers.row(slot(s)) = local.centers.row(s);
+			km.lowerBounds = g.lowerBounds; // only the global path uses them
+		}
+		else
+		{
+			// Paper step c: K-means on all points of the group with the split cluster's centre replaced by the
+			// seeds; warm-started from the previous run (only the seeded centres are new).
+			Eigen::MatrixX3d centers(k + m - 1, 3);
+			centers.topRows(k) = g.centers;
+			std::vector<bool> moved(std::size_t(k + m - 1), false);
+			for (int s = 0; s < m; ++s)
+			{
+				centers.row(slot(s)) = seeds[std::size_t(s)].transpose();
+				moved[std::size_t(slot(s))] = true;
+			}
+			KMeansWarmStart warm;
+			warm.assignment = &g.assignment;
+			warm.lowerBounds = &g.lowerBounds;
+			warm.moved = &moved;
+			Clock::time_point t0 = Clock::now();
+			km = kMeans(g.points, centers, kmeans_, &warm);
+			kmeansMs += msSince(t0);
+			if (km.emptyClusters > 0)
+				return false;
+		}
+		const int kNew = k + m - 1;
 
-		Clock::time_point t0 = Clock::now();
-		KMeansResult km = kMeans(g.points, centers, kmeans_, &warm);
-		kmeansMs += msSince(t0);
-		if (km.emptyClusters > 0)
-			return false;
-
-		// Clusters whose point set changed: the split one, the new one, and any that gained or lost points.
-		std::vector<char> dirty(std::size_t(k + 1), 0);
-		dirty[std::size_t(w)] = dirty[std::size_t(k)] = 1;
+		// Clusters whose point set changed: the split one, the new ones, and any that gained or lost points.
+		std::vector<char> dirty(static_cast<std::size_t>(kNew), 0);
+		for (int s = 0; s < m; ++s)
+			dirty[std::size_t(slot(s))] = 1;
 		for (std::size_t i = 0; i < km.assignment.size(); ++i)
 			if (km.assignment[i] != g.assignment[i])
 				dirty[std::size_t(g.assignment[i])] = dirty[std::size_t(km.assignment[i])] = 1;
 
-		std::vector<Cluster> fresh(std::size_t(k + 1));
+		std::vector<Cluster> fresh(static_cast<std::size_t>(kNew));
 		for (std::size_t i = 0; i < km.assignment.size(); ++i)
 			if (dirty[std::size_t(km.assignment[i])])
 				fresh[std::size_t(km.assignment[i])].members.push_back(int(i));
-		double oldWorst = 0.0, newWorst = 0.0;
-		for (int j = 0; j <= k; ++j)
+		double oldWorst = 0.0, newWorst = 0.0, oldTotal = 0.0, newTotal = 0.0;
+		for (int j = 0; j < kNew; ++j)
 		{
 			if (!dirty[std::size_t(j)])
 				continue;
 			if (j < k)
-				oldWorst = std::max(oldWorst, g.clusters[std::size_t(j)].error);
-			fitCluster(g, fresh[std::size_t(j)]);
-			newWorst = std::max(newWorst, fresh[std::size_t(j)].error);
+			{
+				const Cluster& old = g.clusters[std::size_t(j)];
+				oldWorst = std::max(oldWorst, old.error);
+				oldTotal += old.error * double(old.members.size());
+			}
+			Cluster& c = fresh[std::size_t(j)];
+			fitCluster(g, c);
+			newWorst = std::max(newWorst, c.error);
+			newTotal += c.error * double(c.members.size());
 		}
-		if (!(newWorst < oldWorst))
+		if (!(newWorst < oldWorst) && !(newTotal < oldTotal))
 			return false;
 
 		// Accept: commit the new clusters, centres and bounds. Frozen flags of surviving clusters are kept.
@@ -209,7 +267,8 @@ public:
 				fresh[std::size_t(j)].frozen = g.clusters[std::size_t(j)].frozen;
 				g.clusters[std::size_t(j)] = std::move(fresh[std::size_t(j)]);
 			}
-		g.clusters.push_back(std::move(fresh[std::size_t(k)]));
+		for (int j = k; j < kNew; ++j)
+			g.clusters.push_back(std::move(fresh[std::size_t(j)]));
 		g.centers = km.centers;
 		g.assignment = std::move(km.assignment);
 		g.lowerBounds = std::move(km.lowerBounds);
@@ -253,6 +312,8 @@ void validate(const TriMesh& mesh, const std::vector<Region>& labels, const Body
 		throw InvalidInputError("fitBody: sigma must be finite and >= 0");
 	if (o.maxEllipsoids < 1)
 		throw InvalidInputError("fitBody: max ellipsoids must be >= 1");
+	if (o.splitAxes < 1 || o.splitAxes > 3)
+		throw InvalidInputError("fitBody: splitAxes must be 1, 2 or 3");
 	if (o.maxSplits < 0 || o.kmeansMaxIterations < 1)
 		throw InvalidInputError("fitBody: maxSplits must be >= 0 and kmeansMaxIterations >= 1");
 	if (!positive(o.minRadiusFraction) || !positive(o.mveeTolerance))
@@ -312,6 +373,7 @@ std::vector<Group> makeGroups(const TriMesh& mesh, const std::vector<Region>& la
 			initialCenters.push_back(mean(g.vertices));
 		}
 		g.mu = (g.torso || region == Region::Whole ? o.muTorso : o.muLimbs) * scale;
+		g.localSplits = region == Region::Whole;
 		g.points.resize(Eigen::Index(g.vertices.size()), 3);
 		for (std::size_t i = 0; i < g.vertices.size(); ++i)
 			g.points.row(Eigen::Index(i)) = mesh.V.row(g.vertices[i]);
@@ -420,7 +482,16 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 			break;
 		}
 		++attempts;
-		if (refiner.trySplit(groups[std::size_t(bestG)], bestJ))
+		// Try the longest axis (the paper), then the next axes, then a four-way split across the two longest axes
+		// (a cluster wrapped around a corner, e.g. chest + upper arms, often needs two cuts before its error drops).
+		Group& g = groups[std::size_t(bestG)];
+		const Cluster& target = g.clusters[std::size_t(bestJ)];
+		bool accepted = false;
+		for (int rank = 0; rank < options.splitAxes && !accepted; ++rank)
+			accepted = refiner.trySplit(g, bestJ, Refiner::splitSeeds(target, rank, false));
+		if (!accepted && options.quadSplit && total() + 3 <= options.maxEllipsoids)
+			accepted = refiner.trySplit(g, bestJ, Refiner::splitSeeds(target, 0, true));
+		if (accepted)
 			++result.splitsAccepted;
 		else
 		{

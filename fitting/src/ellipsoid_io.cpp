@@ -246,9 +246,10 @@ BodyFit parseEllipsoidJson(const std::string& text, const std::string& name)
 	{
 		doc = Json::parse(text);
 	}
-	catch (const nlohmann::json::parse_error& e)
+	catch (const nlohmann::json::exception& e)
 	{
-		// nlohmann's message: "[json.exception.parse_error.101] parse error at line L, column C: ..."
+		// nlohmann's messages: "[json.exception.parse_error.101] parse error at line L, column C: ...",
+		// "[json.exception.out_of_range.406] number overflow parsing '1e999'".
 		std::string what = e.what();
 		const std::size_t pos = what.find("] ");
 		throw FormatError(name + ": not valid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
@@ -342,31 +343,6 @@ BodyFit readEllipsoidJson(const std::string& path)
 	if (in.bad())
 		throw FormatError(path + ": read failed");
 	return parseEllipsoidJson(text.str(), path);
-}
-
-Eigen::Vector3d regionColor(Region region)
-{
-	// Hue per body part, left a lighter shade than right.
-	switch (region)
-	{
-	case Region::Head: return {0.95, 0.80, 0.25};
-	case Region::TorsoLowerLeft: return {0.55, 0.75, 0.95};
-	case Region::TorsoLowerRight: return {0.30, 0.50, 0.80};
-	case Region::TorsoMiddleLeft: return {0.55, 0.90, 0.85};
-	case Region::TorsoMiddleRight: return {0.25, 0.65, 0.60};
-	case Region::TorsoUpperLeft: return {0.75, 0.65, 0.95};
-	case Region::TorsoUpperRight: return {0.50, 0.40, 0.75};
-	case Region::ArmUpperLeft: return {0.95, 0.60, 0.55};
-	case Region::ArmUpperRight: return {0.80, 0.35, 0.30};
-	case Region::ArmLowerLeft: return {0.95, 0.75, 0.50};
-	case Region::ArmLowerRight: return {0.85, 0.50, 0.20};
-	case Region::LegUpperLeft: return {0.60, 0.90, 0.55};
-	case Region::LegUpperRight: return {0.35, 0.70, 0.30};
-	case Region::LegLowerLeft: return {0.85, 0.90, 0.50};
-	case Region::LegLowerRight: return {0.60, 0.65, 0.25};
-	case Region::Whole: return {0.70, 0.70, 0.70};
-	}
-	return {0.7, 0.7, 0.7};
 }
 
 TriMesh ellipsoidMesh(const std::vector<FittedEllipsoid>& ellipsoids, int subdivisions, Eigen::MatrixX3d* colors)

@@ -40,6 +40,11 @@ struct BodyFitOptions
 	double sigma = 0.001;
 	int maxEllipsoids = 128;  ///< budget: refinement stops when this many ellipsoids exist (>= number of groups)
 	int maxSplits = 1000;     ///< cap on split attempts (accepted + rejected)
+	/// Axes tried per split attempt, longest first: 1 = the paper (longest axis only); 2 or 3 also try the next
+	/// axes before the ellipsoid is frozen (a cluster that wraps around a corner often splits well across it).
+	int splitAxes = 3;
+	/// After the axes failed, try a four-way split with the end points of the two longest axes before freezing.
+	bool quadSplit = true;
 	int kmeansMaxIterations = 50;
 	/// Minimum MVEE semi-axis as a fraction of H (degenerate clusters: flat patches, < 4 points).
 	double minRadiusFraction = 0.002;

@@ -38,12 +38,9 @@ BodyFit parseEllipsoidJson(const std::string& text, const std::string& name = "<
 /// Reads and validates a file. \throws FormatError (also for a missing or unreadable file), naming the file.
 BodyFit readEllipsoidJson(const std::string& path);
 
-/// RGB colour (0..1) used for a region in exports (a fixed palette; left/right share a hue, differ in shade).
-Eigen::Vector3d regionColor(Region region);
-
 /// The ellipsoids as one triangle mesh: a unit icosphere subdivided `subdivisions` times (0 = 20 triangles, each
 /// level x4; 2 = 320 triangles, 162 vertices per ellipsoid), mapped by x = c + R diag(axes) u. Optional per-vertex
-/// colours (by region) are written into `colors`.
+/// colours (regionColor of segmentation.h) are written into `colors`.
 TriMesh ellipsoidMesh(const std::vector<FittedEllipsoid>& ellipsoids, int subdivisions = 2,
 					  Eigen::MatrixX3d* colors = nullptr);
 

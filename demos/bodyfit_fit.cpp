@@ -1,0 +1,183 @@
+// bodyfit-fit: fit ellipsoids to a body mesh and write them as JSON (DESIGN.md sec. 6).
+#include "bodyfit/body_fitter.h"
+#include "bodyfit/ellipsoid_io.h"
+#include "bodyfit/mesh_io.h"
+#include "common/cli.h"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+namespace
+{
+
+const char* kUsage = R"(usage: bodyfit-fit MESH -o OUT.json [options]
+
+Fits ellipsoids to a body mesh (any format assimp reads) and writes them as JSON.
+
+  -o OUT.json            output file (its directory is created if missing)
+  --mu-torso R           error threshold E_j for the torso (default 0.006 = 0.6% of the height)
+  --mu-limbs R           error threshold for head, arms and legs (default 0.004 = 0.4% of the height)
+  --absolute             thresholds are in metres, not fractions of the height
+  --max-ellipsoids N     budget: stop refining at N ellipsoids (default 128)
+  --up y|z               up axis of the file (default y; z files are rotated to +y up)
+  --scale S              multiply coordinates by S to get metres (default 1; 0.01 for centimetres)
+  --export-mesh OUT.obj|OUT.ply
+                         also write the ellipsoids as a triangle mesh (coloured by region in PLY)
+  -h, --help             this text
+
+E_j is the paper's fitting error: the mean radial distance of an ellipsoid's vertices to its surface.
+The whole mesh is fitted as one region until segmentation is available; the largest connected
+component is used. Exit status: 0 ok, 2 bad input (one-line reason on stderr), 1 internal error.
+)";
+
+using Clock = std::chrono::steady_clock;
+
+std::string mm(double metres)
+{
+	char buf[32];
+	std::snprintf(buf, sizeof buf, "%.2f mm", metres * 1000.0);
+	return buf;
+}
+
+std::string ms(double v)
+{
+	char buf[32];
+	std::snprintf(buf, sizeof buf, v < 10.0 ? "%.2f ms" : "%.1f ms", v);
+	return buf;
+}
+
+void printSummary(const bodyfit::LoadedMesh& loaded, const bodyfit::BodyFit& fit, const std::string& regions,
+				  const std::string& out, const std::string& exportPath)
+{
+	const bodyfit::MeshReport& r = loaded.report;
+	const double scale = fit.params.relativeToHeight ? fit.source.height : 1.0;
+	std::cout << "bodyfit-fit: " << r.path << "\n";
+	std::cout << "  mesh      " << loaded.mesh.vertexCount() << " vertices, " << loaded.mesh.faceCount()
+			  << " faces used (file: " << r.fileVertices << " vertices, " << r.fileFaces << " faces; welded "
+			  << r.weldedVertices << ", degenerate faces " << r.degenerateFaces << ", components " << r.components;
+	if (r.droppedComponentVertices > 0)
+		std::cout << ", " << r.droppedComponentVertices << " vertices in smaller components ignored";
+	std::cout << ")\n";
+	std::cout << "  frame     up " << bodyfit::toString(r.up) << " converted to +y, scale " << r.scale
+			  << ", height " << fit.source.height << " m\n";
+	std::cout << "  regions   " << regions << "\n";
+	std::cout << "  fit       " << fit.ellipsoids.size() << " ellipsoids, refinement " << bodyfit::toString(fit.status)
+			  << " (" << fit.splitsAccepted << " splits accepted, " << fit.splitsRejected << " rejected)\n";
+	std::cout << "  threshold mu_torso " << mm(fit.params.muTorso * scale) << ", mu_limbs "
+			  << mm(fit.params.muLimbs * scale)
+			  << (fit.params.relativeToHeight ? " (relative to height)" : " (absolute)") << "\n";
+	std::cout << "  error     radial (paper E): mean " << mm(fit.meanRadialError()) << ", worst ellipsoid E_j "
+			  << mm(fit.maxRadialError()) << "\n";
+	std::cout << "  air gap   vertex to own ellipsoid surface: mean " << mm(fit.meanDistance()) << ", max "
+			  << mm(fit.maxDistance()) << "\n";
+	std::cout << "  timing    load " << ms(fit.timingMs("load"));
+	if (fit.timingMs("segmentation") > 0.0)
+		std::cout << ", segmentation " << ms(fit.timingMs("segmentation"));
+	std::cout << ", fitting " << ms(fit.timingMs("fitting")) << " (k-means " << ms(fit.timingMs("fitting.kmeans"))
+			  << ", mvee " << ms(fit.timingMs("fitting.mvee")) << ", error " << ms(fit.timingMs("fitting.error"))
+			  << "), report " << ms(fit.timingMs("report")) << "\n";
+	std::cout << "  output    " << out;
+	if (!exportPath.empty())
+		std::cout << ", " << exportPath;
+	std::cout << "\n";
+	if (fit.warnings.empty())
+		std::cout << "  warnings  none\n";
+	for (const std::string& w : fit.warnings)
+		std::cout << "  warning   " << w << "\n";
+}
+
+bool hasExtension(const std::string& path, const char* ext)
+{
+	std::string e = std::filesystem::path(path).extension().string();
+	for (char& c : e)
+		c = char(std::tolower((unsigned char)c));
+	return e == ext;
+}
+
+} // namespace
+
+int main(int argc, char** argv)
+{
+	return bodyfit_cli::runMain("bodyfit-fit", [&] {
+		using bodyfit_cli::UsageError;
+		const bodyfit_cli::Args args(argc, argv,
+									 {{"-o", true, "OUT.json"},
+									  {"--mu-torso", true, "R"},
+									  {"--mu-limbs", true, "R"},
+									  {"--absolute", false, ""},
+									  {"--max-ellipsoids", true, "N"},
+									  {"--up", true, "y|z"},
+									  {"--scale", true, "S"},
+									  {"--export-mesh", true, "OUT.obj|OUT.ply"}});
+		if (args.helpRequested())
+		{
+			std::cout << kUsage;
+			return bodyfit_cli::kExitOk;
+		}
+
+		// Arguments: everything is checked before any work is done.
+		args.requirePositional(1, "MESH argument");
+		const std::string meshPath = args.positional()[0];
+		if (!args.has("-o"))
+			throw UsageError("missing -o OUT.json (see --help)");
+		const std::string outPath = args.value("-o");
+		if (outPath.empty())
+			throw UsageError("-o: empty file name");
+		const std::string exportPath = args.value("--export-mesh");
+		if (args.has("--export-mesh") && !hasExtension(exportPath, ".obj") && !hasExtension(exportPath, ".ply"))
+			throw UsageError("--export-mesh: \"" + exportPath + "\" must end in .obj or .ply");
+
+		bodyfit::LoadOptions load;
+		load.up = args.choice("--up", {"y", "z"}, "y") == "z" ? bodyfit::UpAxis::Z : bodyfit::UpAxis::Y;
+		load.scale = args.number("--scale", 1.0, 0.0, 1e9, /*open=*/true);
+
+		bodyfit::BodyFitOptions options;
+		const bool absolute = args.has("--absolute");
+		const double huge = absolute ? 10.0 : 1.0; // a threshold >= the whole body (10 m, or 100% of H) is a typo
+		options.muTorso = args.number("--mu-torso", options.muTorso, 0.0, huge, /*open=*/true);
+		options.muLimbs = args.number("--mu-limbs", options.muLimbs, 0.0, huge, /*open=*/true);
+		options.maxEllipsoids = args.integer("--max-ellipsoids", options.maxEllipsoids, 1, 100000);
+
+		// Load.
+		const Clock::time_point t0 = Clock::now();
+		const bodyfit::LoadedMesh loaded = bodyfit::loadTriMesh(meshPath, load);
+		const double loadMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+		const bodyfit::TriMesh& mesh = loaded.mesh;
+
+		if (absolute)
+		{
+			// Thresholds given in metres; the ones not given keep their relative defaults, converted with H.
+			const double height = mesh.V.col(1).maxCoeff() - mesh.V.col(1).minCoeff();
+			options.relativeToHeight = false;
+			options.sigma *= height;
+			if (!args.has("--mu-torso"))
+				options.muTorso *= height;
+			if (!args.has("--mu-limbs"))
+				options.muLimbs *= height;
+		}
+
+		// Region labels: the whole mesh is one region (generic path).
+		const std::vector<bodyfit::Region> labels(std::size_t(mesh.vertexCount()), bodyfit::Region::Whole);
+		const std::string regionSummary = "whole mesh as one region (no segmentation)";
+
+		// Fit.
+		bodyfit::BodyFit fit = bodyfit::fitBody(mesh, labels, options);
+		fit.source.mesh = std::filesystem::path(meshPath).filename().string();
+		std::vector<bodyfit::StageTiming> timings = {{"load", loadMs}};
+		timings.insert(timings.end(), fit.timings.begin(), fit.timings.end());
+		fit.timings = timings;
+
+		// Outputs.
+		bodyfit_cli::ensureParentDirectory(outPath);
+		bodyfit::writeEllipsoidJson(outPath, fit);
+		if (!exportPath.empty())
+		{
+			bodyfit_cli::ensureParentDirectory(exportPath);
+			bodyfit::exportEllipsoidMesh(exportPath, fit.ellipsoids);
+		}
+		printSummary(loaded, fit, regionSummary, outPath, exportPath);
+		return bodyfit_cli::kExitOk;
+	});
+}

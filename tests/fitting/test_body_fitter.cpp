@@ -1,0 +1,254 @@
+// Refinement (pruned bisecting K-means + MVEE): termination, thresholds or budget, enclosure, determinism, labels.
+#include "bodyfit/body_fitter.h"
+#include "bodyfit/errors.h"
+#include "bodyfit/mesh_io.h"
+#include "support_paths.h"
+
+#include <catch2/catch.hpp>
+
+using namespace bodyfit;
+
+namespace
+{
+
+/// The decimated bundled body (4,508 vertices): small enough to fit many times in a test.
+const TriMesh& body()
+{
+	static const TriMesh mesh = loadTriMesh(bodyfit_test::assetPath("male_young.4508v.obj")).mesh;
+	return mesh;
+}
+
+double height(const TriMesh& m)
+{
+	return m.V.col(1).maxCoeff() - m.V.col(1).minCoeff();
+}
+
+/// Properties every fit must have, whatever its status.
+void checkInvariants(const TriMesh& mesh, const BodyFit& fit, const BodyFitOptions& o)
+{
+	REQUIRE(!fit.ellipsoids.empty());
+	CHECK(int(fit.ellipsoids.size()) <= o.maxEllipsoids);
+	REQUIRE(fit.vertexEllipsoid.size() == std::size_t(mesh.vertexCount()));
+	std::vector<int> counts(fit.ellipsoids.size(), 0);
+	std::vector<double> radialSums(fit.ellipsoids.size(), 0.0);
+	for (int v = 0; v < mesh.vertexCount(); ++v)
+	{
+		const int e = fit.vertexEllipsoid[std::size_t(v)];
+		REQUIRE(e >= 0);
+		REQUIRE(e < int(fit.ellipsoids.size()));
+		++counts[std::size_t(e)];
+		const Ellipsoid& el = fit.ellipsoids[std::size_t(e)].ellipsoid;
+		// Each MVEE encloses its cluster: mvee.h guarantees zeta <= 1 + 1e-9.
+		CHECK(el.zeta(mesh.V.row(v).transpose()) <= 1.0 + 1e-9);
+		radialSums[std::size_t(e)] += radialDistance(el, mesh.V.row(v).transpose());
+	}
+	for (std::size_t e = 0; e < fit.ellipsoids.size(); ++e)
+	{
+		const FittedEllipsoid& f = fit.ellipsoids[e];
+		CHECK(f.vertexCount == counts[e]);
+		CHECK(f.vertexCount > 0);
+		CHECK(f.ellipsoid.isValid(1e-9));
+		// E_j is the mean radial distance of exactly these vertices (same sum, maybe another order: 1e-12 rel.).
+		CHECK(f.radialError == Approx(radialSums[e] / counts[e]).epsilon(1e-12));
+		CHECK(f.meanDistance <= f.radialError + 1e-12); // true distance <= radial distance
+		CHECK(f.maxDistance >= f.meanDistance);
+	}
+	const double scale = o.relativeToHeight ? height(mesh) : 1.0;
+	if (fit.status == RefineStatus::Converged)
+		for (const FittedEllipsoid& f : fit.ellipsoids)
+		{
+			const double mu = (isTorso(f.region) || f.region == Region::Whole ? o.muTorso : o.muLimbs) * scale;
+			CHECK(f.radialError <= mu);
+		}
+	if (fit.status == RefineStatus::BudgetReached)
+		CHECK(int(fit.ellipsoids.size()) > o.maxEllipsoids - 3); // a split adds 1 (or 3 for a four-way split)
+	CHECK(fit.timingMs("fitting") > 0.0);
+}
+
+} // namespace
+
+TEST_CASE("body_fitter: the generic path on a body meets loose thresholds", "[fitting][body_fitter]")
+{
+	BodyFitOptions o;
+	o.muTorso = 0.02; // 2% of H (35 mm): reachable well inside the default budget
+	const BodyFit fit = fitBody(body(), o);
+	checkInvariants(body(), fit, o);
+	CHECK(fit.status == RefineStatus::Converged);
+	CHECK(fit.ellipsoids.size() > 1);
+	for (const FittedEllipsoid& f : fit.ellipsoids)
+		CHECK(f.region == Region::Whole);
+	CHECK(fit.source.height == height(body()));
+	CHECK(fit.params.muTorso == 0.02);
+}
+
+TEST_CASE("body_fitter: defaults either converge or stop at the budget with a warning", "[fitting][body_fitter]")
+{
+	const BodyFitOptions o;
+	const BodyFit fit = fitBody(body(), o);
+	checkInvariants(body(), fit, o);
+	if (fit.status != RefineStatus::Converged)
+		CHECK(!fit.warnings.empty());
+}
+
+TEST_CASE("body_fitter: the budget stops refinement", "[fitting][body_fitter]")
+{
+	BodyFitOptions o;
+	o.muTorso = 1e-4; // unreachable
+	o.maxEllipsoids = 12;
+	const BodyFit fit = fitBody(body(), o);
+	checkInvariants(body(), fit, o);
+	CHECK(fit.status == RefineStatus::BudgetReached);
+	CHECK(fit.warnings.size() >= 1);
+
+	o.maxSplits = 0;
+	const BodyFit none = fitBody(body(), o);
+	CHECK(none.status == RefineStatus::SplitCapReached);
+	CHECK(none.ellipsoids.size() == 1);
+}
+
+TEST_CASE("body_fitter: absolute thresholds are metres", "[fitting][body_fitter]")
+{
+	BodyFitOptions o;
+	o.relativeToHeight = false;
+	o.muTorso = 0.03;
+	o.sigma = 0.002;
+	const BodyFit fit = fitBody(body(), o);
+	checkInvariants(body(), fit, o);
+	CHECK(fit.status == RefineStatus::Converged);
+	CHECK(fit.maxRadialError() <= 0.03);
+}
+
+TEST_CASE("body_fitter: deterministic bit for bit", "[fitting][body_fitter]")
+{
+	BodyFitOptions o;
+	o.maxEllipsoids = 40;
+	const BodyFit a = fitBody(body(), o);
+	const BodyFit b = fitBody(body(), o);
+	REQUIRE(a.ellipsoids.size() == b.ellipsoids.size());
+	CHECK(a.vertexEllipsoid == b.vertexEllipsoid);
+	for (std::size_t i = 0; i < a.ellipsoids.size(); ++i)
+	{
+		CHECK(a.ellipsoids[i].ellipsoid.center == b.ellipsoids[i].ellipsoid.center);
+		CHECK(a.ellipsoids[i].ellipsoid.rotation == b.ellipsoids[i].ellipsoid.rotation);
+		CHECK(a.ellipsoids[i].ellipsoid.radii == b.ellipsoids[i].ellipsoid.radii);
+		CHECK(a.ellipsoids[i].radialError == b.ellipsoids[i].radialError);
+	}
+}
+
+TEST_CASE("body_fitter: segmented input: torso k = 6, one group per limb part", "[fitting][body_fitter]")
+{
+	// Coordinate-based stand-in for the segmentation (enough to exercise the grouping; not anatomical).
+	const TriMesh& m = body();
+	const double y0 = m.V.col(1).minCoeff(), h = height(m);
+	std::vector<Region> labels(std::size_t(m.vertexCount()));
+	for (int v = 0; v < m.vertexCount(); ++v)
+	{
+		const double x = m.V(v, 0), y = (m.V(v, 1) - y0) / h;
+		const bool left = x > 0.0;
+		Region r;
+		if (y > 0.87)
+			r = Region::Head;
+		else if (y > 0.47 && std::abs(x) < 0.18)
+			r = y > 0.72 ? (left ? Region::TorsoUpperLeft : Region::TorsoUpperRight)
+			  : y > 0.6  ? (left ? Region::TorsoMiddleLeft : Region::TorsoMiddleRight)
+						 : (left ? Region::TorsoLowerLeft : Region::TorsoLowerRight);
+		else if (y > 0.47)
+			r = std::abs(x) < 0.35 ? (left ? Region::ArmUpperLeft : Region::ArmUpperRight)
+								   : (left ? Region::ArmLowerLeft : Region::ArmLowerRight);
+		else
+			r = y > 0.285 ? (left ? Region::LegUpperLeft : Region::LegUpperRight)
+						  : (left ? Region::LegLowerLeft : Region::LegLowerRight);
+		labels[std::size_t(v)] = r;
+	}
+
+	SECTION("with thresholds that the initial clusters meet, the initial clusters are the result")
+	{
+		BodyFitOptions o;
+		o.muTorso = o.muLimbs = 0.5;
+		const BodyFit fit = fitBody(m, labels, o);
+		checkInvariants(m, fit, o);
+		CHECK(fit.status == RefineStatus::Converged);
+		CHECK(fit.splitsAccepted == 0);
+		int torso = 0;
+		std::vector<int> seen(kBodyRegionCount, 0);
+		for (const FittedEllipsoid& f : fit.ellipsoids)
+		{
+			torso += isTorso(f.region);
+			++seen[std::size_t(f.region)];
+		}
+		CHECK(torso == 6);                          // k = 6 initialised with the 6 part means
+		CHECK(int(fit.ellipsoids.size()) == 6 + 9); // + head + 8 limb parts, k = 1 each
+		for (int r = 0; r < kBodyRegionCount; ++r)
+			if (!isTorso(Region(r)))
+				CHECK(seen[std::size_t(r)] == 1);
+	}
+	SECTION("refined: limb and head ellipsoids only cover their own region")
+	{
+		const BodyFitOptions o;
+		const BodyFit fit = fitBody(m, labels, o);
+		checkInvariants(m, fit, o);
+		for (int v = 0; v < m.vertexCount(); ++v)
+		{
+			const Region r = fit.ellipsoids[std::size_t(fit.vertexEllipsoid[std::size_t(v)])].region;
+			if (isTorso(labels[std::size_t(v)]))
+				CHECK(isTorso(r));
+			else
+				CHECK(r == labels[std::size_t(v)]);
+		}
+	}
+}
+
+TEST_CASE("body_fitter: pathological input terminates with a status", "[fitting][body_fitter]")
+{
+	// A tetrahedron plus 30 copies of its centroid: the copies can never be separated, and a cluster made of them
+	// alone is a point whose MVEE is the minimum-radius sphere (E_j = that radius, above any tiny threshold).
+	TriMesh m;
+	m.V.resize(34, 3);
+	m.V.topRows(4) << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+	m.V.bottomRows(30).rowwise() = m.V.topRows(4).colwise().mean();
+	m.F.resize(4, 3);
+	m.F << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;
+	BodyFitOptions o;
+	o.muTorso = 1e-9;
+	const BodyFit fit = fitBody(m, o);
+	checkInvariants(m, fit, o);
+	CHECK(fit.status == RefineStatus::Frozen);
+	CHECK(fit.ellipsoids.size() <= 5); // at most the 4 corners and the centroid pile
+	CHECK(!fit.warnings.empty());
+	// The pile's ellipsoid is the minimum-radius sphere around it.
+	const FittedEllipsoid& pile = fit.ellipsoids[std::size_t(fit.vertexEllipsoid[10])];
+	CHECK(pile.ellipsoid.radii.maxCoeff() >= fit.params.minRadius);
+
+	SECTION("a budget below the number of regions is a warning, not an error")
+	{
+		std::vector<Region> labels(34, Region::Head);
+		labels[1] = Region::ArmLowerLeft;
+		labels[2] = Region::LegLowerLeft;
+		labels[3] = Region::LegLowerRight;
+		BodyFitOptions b;
+		b.maxEllipsoids = 2;
+		b.muTorso = b.muLimbs = 1e-9;
+		const BodyFit small = fitBody(m, labels, b);
+		CHECK(small.ellipsoids.size() == 4);
+		CHECK(small.status == RefineStatus::BudgetReached);
+		CHECK(small.warnings.size() >= 1);
+	}
+}
+
+TEST_CASE("body_fitter: invalid arguments throw InvalidInputError", "[fitting][body_fitter]")
+{
+	const TriMesh& m = body();
+	CHECK_THROWS_WITH(fitBody(m, std::vector<Region>(3, Region::Whole)), Catch::Contains("region labels"));
+	BodyFitOptions o;
+	o.muTorso = 0.0;
+	CHECK_THROWS_WITH(fitBody(m, o), Catch::Contains("mu_torso"));
+	o = {};
+	o.muLimbs = std::nan("");
+	CHECK_THROWS_WITH(fitBody(m, o), Catch::Contains("mu_limbs"));
+	o = {};
+	o.maxEllipsoids = 0;
+	CHECK_THROWS_AS(fitBody(m, o), InvalidInputError);
+	o = {};
+	o.splitAxes = 4;
+	CHECK_THROWS_AS(fitBody(m, o), InvalidInputError);
+}
