@@ -2,6 +2,7 @@
 #include "bodyfit/body_fitter.h"
 #include "bodyfit/ellipsoid_io.h"
 #include "bodyfit/mesh_io.h"
+#include "bodyfit/segmentation.h"
 #include "common/cli.h"
 
 #include <chrono>
@@ -25,11 +26,18 @@ Fits ellipsoids to a body mesh (any format assimp reads) and writes them as JSON
   --scale S              multiply coordinates by S to get metres (default 1; 0.01 for centimetres)
   --export-mesh OUT.obj|OUT.ply
                          also write the ellipsoids as a triangle mesh (coloured by region in PLY)
+  --segments OUT.ply|OUT.obj
+                         also write the mesh coloured by body region, with a small marker at every
+                         feature point (black: head top, hands, feet; white: neck, elbows, knees;
+                         magenta: perineum, armpits)
+  --no-segmentation      fit the whole mesh as one region (generic path)
   -h, --help             this text
 
 E_j is the paper's fitting error: the mean radial distance of an ellipsoid's vertices to its surface.
-The whole mesh is fitted as one region until segmentation is available; the largest connected
-component is used. Exit status: 0 ok, 2 bad input (one-line reason on stderr), 1 internal error.
+The body is segmented into 15 regions (head, 6 torso parts, upper/lower arms and legs; the mesh must be
++y up and face +z, so the subject's left is +x) and each region is fitted on its own. A mesh that is
+not a standing human is fitted as one region, with a warning. The largest connected component is
+used. Exit status: 0 ok, 2 bad input (one-line reason on stderr), 1 internal error.
 )";
 
 using Clock = std::chrono::steady_clock;
@@ -110,7 +118,9 @@ int main(int argc, char** argv)
 									  {"--max-ellipsoids", true, "N"},
 									  {"--up", true, "y|z"},
 									  {"--scale", true, "S"},
-									  {"--export-mesh", true, "OUT.obj|OUT.ply"}});
+									  {"--export-mesh", true, "OUT.obj|OUT.ply"},
+									  {"--segments", true, "OUT.ply|OUT.obj"},
+									  {"--no-segmentation", false, ""}});
 		if (args.helpRequested())
 		{
 			std::cout << kUsage;
@@ -128,6 +138,12 @@ int main(int argc, char** argv)
 		const std::string exportPath = args.value("--export-mesh");
 		if (args.has("--export-mesh") && !hasExtension(exportPath, ".obj") && !hasExtension(exportPath, ".ply"))
 			throw UsageError("--export-mesh: \"" + exportPath + "\" must end in .obj or .ply");
+		const std::string segmentsPath = args.value("--segments");
+		if (args.has("--segments") && !hasExtension(segmentsPath, ".obj") && !hasExtension(segmentsPath, ".ply"))
+			throw UsageError("--segments: \"" + segmentsPath + "\" must end in .ply or .obj");
+		const bool segment = !args.has("--no-segmentation");
+		if (!segment && args.has("--segments"))
+			throw UsageError("--segments needs the segmentation: drop --no-segmentation");
 
 		bodyfit::LoadOptions load;
 		load.up = args.choice("--up", {"y", "z"}, "y") == "z" ? bodyfit::UpAxis::Z : bodyfit::UpAxis::Y;
@@ -158,16 +174,35 @@ int main(int argc, char** argv)
 				options.muLimbs *= height;
 		}
 
-		// Region labels: the whole mesh is one region (generic path).
-		const std::vector<bodyfit::Region> labels(std::size_t(mesh.vertexCount()), bodyfit::Region::Whole);
-		const std::string regionSummary = "whole mesh as one region (no segmentation)";
+		// Region labels: the semantic segmentation, or the whole mesh as one region (generic path) when it is
+		// switched off or the mesh is not a standing human.
+		bodyfit::Segmentation segmentation;
+		std::string regionSummary = "whole mesh as one region (--no-segmentation)";
+		if (segment)
+		{
+			segmentation = bodyfit::segmentBody(mesh);
+			regionSummary = segmentation.ok
+								? std::to_string(bodyfit::kBodyRegionCount) + " body regions (segmentation)"
+								: "whole mesh as one region (segmentation failed)";
+		}
+		else
+			segmentation = bodyfit::wholeBodySegmentation(mesh, "segmentation switched off (--no-segmentation)");
 
 		// Fit.
-		bodyfit::BodyFit fit = bodyfit::fitBody(mesh, labels, options);
+		bodyfit::BodyFit fit = bodyfit::fitBody(mesh, segmentation.labels, options);
 		fit.source.mesh = std::filesystem::path(meshPath).filename().string();
 		std::vector<bodyfit::StageTiming> timings = {{"load", loadMs}};
+		if (segment)
+			timings.push_back({"segmentation", segmentation.milliseconds});
 		timings.insert(timings.end(), fit.timings.begin(), fit.timings.end());
 		fit.timings = timings;
+		if (segment && !segmentation.ok)
+		{
+			const std::string warning =
+				"segmentation failed (" + segmentation.failureReason + "); fitted the whole mesh as one region";
+			fit.warnings.insert(fit.warnings.begin(), warning);
+			std::cerr << "bodyfit-fit: warning: " << warning << "\n";
+		}
 
 		// Outputs.
 		bodyfit_cli::ensureParentDirectory(outPath);
@@ -177,7 +212,17 @@ int main(int argc, char** argv)
 			bodyfit_cli::ensureParentDirectory(exportPath);
 			bodyfit::exportEllipsoidMesh(exportPath, fit.ellipsoids);
 		}
-		printSummary(loaded, fit, regionSummary, outPath, exportPath);
+		if (!segmentsPath.empty())
+		{
+			bodyfit_cli::ensureParentDirectory(segmentsPath);
+			Eigen::MatrixX3d colors;
+			const bodyfit::TriMesh preview = bodyfit::segmentationPreview(mesh, segmentation, &colors);
+			bodyfit::saveTriMesh(segmentsPath, preview, &colors);
+		}
+		std::string extraOutputs = exportPath;
+		if (!segmentsPath.empty())
+			extraOutputs += (extraOutputs.empty() ? "" : ", ") + segmentsPath;
+		printSummary(loaded, fit, regionSummary, outPath, extraOutputs);
 		return bodyfit_cli::kExitOk;
 	});
 }
