@@ -30,7 +30,7 @@ constexpr double kRelativeFlatness = 1e-10;
 constexpr int kRebuildInterval = 64;
 /// Violators added to the active set per round (the worst ones).
 constexpr int kViolatorsPerRound = 24;
-/// Relative growth applied when a rescale must be repeated because rounding left max zeta a few ulps above 1.
+/// Relative growth added to every rescale so that rounding cannot leave max zeta a few ulps above 1.
 constexpr double kRescaleGuard = 8.0 * std::numeric_limits<double>::epsilon();
 
 // ---- Active-set Khachiyan solver in d = 2 or 3 dimensions, on well-scaled coordinates -------------------------------
@@ -275,51 +275,96 @@ struct Frame
 	double flatness = 0.0;           ///< widths <= flatness count as zero
 };
 
-/// Index of the largest and smallest value of dir . c_i.
-std::pair<int, int> extremes(const Eigen::Matrix3Xd& c, const Eigen::Vector3d& dir)
+/// The input points relative to their mean, read on the fly (no N x 3 copy: the O(N) passes stay allocation-free).
+struct Centred
 {
-	const Eigen::RowVectorXd proj = dir.transpose() * c;
-	int hi = 0, lo = 0;
-	proj.maxCoeff(&hi);
-	proj.minCoeff(&lo);
-	return {hi, lo};
+	const Eigen::MatrixX3d& points;
+	Eigen::Vector3d origin;
+
+	int size() const { return int(points.rows()); }
+	Eigen::Vector3d operator()(int i) const
+	{
+		return Eigen::Vector3d(points(i, 0) - origin[0], points(i, 1) - origin[1], points(i, 2) - origin[2]);
+	}
+};
+
+/// Index of the largest and smallest value of dir . c_i.
+std::pair<int, int> extremes(const Centred& c, const Eigen::Vector3d& dir)
+{
+	double hi = -std::numeric_limits<double>::infinity(), lo = std::numeric_limits<double>::infinity();
+	int hiIdx = 0, loIdx = 0;
+	for (int i = 0; i < c.size(); ++i)
+	{
+		const double p = dir.dot(c(i));
+		if (p > hi)
+		{
+			hi = p;
+			hiIdx = i;
+		}
+		if (p < lo)
+		{
+			lo = p;
+			loIdx = i;
+		}
+	}
+	return {hiIdx, loIdx};
 }
 
-/// Builds the KY frame of the centred points c (3 x n): f1 along the first KY difference vector, f2 completing the
-/// plane of the first two, f3 their normal (the third KY direction). Detects the affine rank on the way.
-Frame buildFrame(const Eigen::Matrix3Xd& c, const Eigen::Vector3d& origin, double coordinateMagnitude)
+/// Builds the KY frame of the centred points: f1 along the first KY difference vector, f2 completing the plane of the
+/// first two, f3 their normal (the third KY direction). Detects the affine rank on the way.
+Frame buildFrame(const Centred& c, double coordinateMagnitude)
 {
 	Frame f;
-	f.origin = origin;
-	const int n = int(c.cols());
+	f.origin = c.origin;
+	const int n = c.size();
 	int far = 0;
-	const double extent = std::sqrt(c.colwise().squaredNorm().maxCoeff(&far));
+	double extent2 = 0.0;
+	for (int i = 0; i < n; ++i)
+	{
+		const double d2 = c(i).squaredNorm();
+		if (d2 > extent2)
+		{
+			extent2 = d2;
+			far = i;
+		}
+	}
+	const double extent = std::sqrt(extent2);
 	// Rounding of the input coordinates is ~1e-16 of their magnitude: never call anything thinner than that flat.
 	f.flatness = std::max(kRelativeFlatness * extent, 64.0 * std::numeric_limits<double>::epsilon() * coordinateMagnitude);
 	f.axes.setIdentity();
+	f.lo.setZero();
+	f.hi.setZero();
 	if (!(extent > f.flatness))
 	{
 		f.rank = 0;
-		f.lo.setZero();
-		f.hi.setZero();
 		return f;
 	}
 	// KY direction 1: towards the farthest point from the mean (so the difference vector is non-zero).
-	auto [a1, b1] = extremes(c, c.col(far) / extent);
-	const Eigen::Vector3d f1 = (c.col(a1) - c.col(b1)).normalized();
+	const auto [a1, b1] = extremes(c, c(far) / extent);
+	const Eigen::Vector3d f1 = (c(a1) - c(b1)).normalized();
 	// KY direction 2: orthogonal to v1, towards the point farthest from the line through the mean along f1.
-	Eigen::Matrix3Xd residual = c - f1 * (f1.transpose() * c);
 	int farLine = 0;
-	const double offLine = std::sqrt(residual.colwise().squaredNorm().maxCoeff(&farLine));
+	double offLine2 = 0.0;
+	for (int i = 0; i < n; ++i)
+	{
+		const Eigen::Vector3d p = c(i);
+		const double r2 = (p - f1.dot(p) * f1).squaredNorm();
+		if (r2 > offLine2)
+		{
+			offLine2 = r2;
+			farLine = i;
+		}
+	}
+	const double offLine = std::sqrt(offLine2);
 	Eigen::Vector3d f2, f3;
-	int a2 = a1, b2 = b1, a3 = a1, b3 = b1;
+	int a2 = a1, b2 = b1;
 	if (offLine > f.flatness)
 	{
-		std::tie(a2, b2) = extremes(c, residual.col(farLine) / offLine);
-		const Eigen::Vector3d v2 = c.col(a2) - c.col(b2);
+		const Eigen::Vector3d p = c(farLine);
+		std::tie(a2, b2) = extremes(c, (p - f1.dot(p) * f1) / offLine);
+		const Eigen::Vector3d v2 = c(a2) - c(b2);
 		f2 = (v2 - f1.dot(v2) * f1).normalized();
 		f3 = f1.cross(f2).normalized(); // KY direction 3: orthogonal to v1 and v2
-		std::tie(a3, b3) = extremes(c, f3);
 	}
 	else
 	{
@@ -327,69 +372,92 @@ Frame buildFrame(const Eigen::Matrix3Xd& c, const Eigen::Vector3d& origin, doubl
 		f3 = f1.cross(f2);
 	}
 	f.axes << f1, f2, f3;
+	// One pass: the extent along every frame axis, and the KY points along f3.
+	const Eigen::Matrix3d Ft = f.axes.transpose();
+	f.lo.setConstant(std::numeric_limits<double>::infinity());
+	f.hi.setConstant(-std::numeric_limits<double>::infinity());
+	int a3 = a1, b3 = b1;
+	for (int i = 0; i < n; ++i)
+	{
+		const Eigen::Vector3d l = Ft * c(i);
+		for (int k = 0; k < 2; ++k)
+		{
+			f.lo[k] = std::min(f.lo[k], l[k]);
+			f.hi[k] = std::max(f.hi[k], l[k]);
+		}
+		if (l[2] > f.hi[2])
+		{
+			f.hi[2] = l[2];
+			a3 = i;
+		}
+		if (l[2] < f.lo[2])
+		{
+			f.lo[2] = l[2];
+			b3 = i;
+		}
+	}
 	f.kyPoints = {a1, b1, a2, b2, a3, b3};
-	const Eigen::Matrix3Xd local = f.axes.transpose() * c;
-	f.lo = local.rowwise().minCoeff();
-	f.hi = local.rowwise().maxCoeff();
 	const Eigen::Vector3d width = f.hi - f.lo;
 	f.rank = width[1] <= f.flatness ? 1 : (width[2] <= f.flatness ? 2 : 3);
-	(void)n;
 	return f;
 }
 
 /// Number of distinct points (up to 4) with `tolerance` as the merge distance.
-int countDistinct(const Eigen::Matrix3Xd& c, double tolerance)
+int countDistinct(const Centred& c, double tolerance)
 {
 	std::vector<Eigen::Vector3d> reps;
-	for (int i = 0; i < c.cols() && reps.size() < 4; ++i)
+	for (int i = 0; i < c.size() && reps.size() < 4; ++i)
 	{
 		bool seen = false;
 		for (const Eigen::Vector3d& r : reps)
-			seen = seen || (c.col(i) - r).norm() <= tolerance;
+			seen = seen || (c(i) - r).norm() <= tolerance;
 		if (!seen)
-			reps.push_back(c.col(i));
+			reps.push_back(c(i));
 	}
 	return int(reps.size());
 }
 
-/// Whitened coordinates along the first D frame axes: y = (f_k . c - mid_k) / width_k.
+/// Directions of the extreme points added to the first active set, in whitened coordinates: the axes and the
+/// diagonals of the unit cube (D = 3: 7 directions, D = 2: 4). A cheap hull sample that saves active-set rounds.
 template <int D>
-Eigen::Matrix<double, D, Eigen::Dynamic> whiten(const Eigen::Matrix3Xd& c, const Frame& f)
+struct ProbeDirections;
+template <>
+struct ProbeDirections<3>
 {
+	static constexpr int kCount = 7;
+	static constexpr double kTable[kCount][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 1},
+	                                             {1, 1, -1}, {1, -1, 1}, {-1, 1, 1}};
+};
+template <>
+struct ProbeDirections<2>
+{
+	static constexpr int kCount = 4;
+	static constexpr double kTable[kCount][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+};
+
+/// Whitened coordinates along the first D frame axes, y = (f_k . c - mid_k) / width_k, and (same pass) the indices
+/// of the extreme points along the probe directions (2 per direction, possibly repeated).
+template <int D>
+Eigen::Matrix<double, D, Eigen::Dynamic> whiten(const Centred& c, const Frame& f, std::vector<int>& probes)
+{
+	using Probe = ProbeDirections<D>;
 	const Eigen::Matrix<double, D, 1> mid = 0.5 * (f.lo + f.hi).template head<D>();
 	const Eigen::Matrix<double, D, 1> invWidth = (f.hi - f.lo).template head<D>().cwiseInverse();
-	Eigen::Matrix<double, D, Eigen::Dynamic> y = f.axes.leftCols<D>().transpose() * c;
-	y.colwise() -= mid;
-	y = invWidth.asDiagonal() * y;
-	return y;
-}
-
-/// Extreme points along ±e_k and the face / body diagonals of the whitened cube (cheap hull approximation).
-template <int D>
-std::vector<int> directionalExtremes(const Eigen::Matrix<double, D, Eigen::Dynamic>& y)
-{
-	std::vector<Eigen::Matrix<double, D, 1>> dirs;
-	if constexpr (D == 3)
+	const Eigen::Matrix<double, D, 3> T = invWidth.asDiagonal() * f.axes.leftCols<D>().transpose();
+	std::array<double, Probe::kCount> hi, lo;
+	std::array<int, Probe::kCount> hiIdx{}, loIdx{};
+	hi.fill(-std::numeric_limits<double>::infinity());
+	lo.fill(std::numeric_limits<double>::infinity());
+	Eigen::Matrix<double, D, Eigen::Dynamic> y(D, c.size());
+	for (int i = 0; i < c.size(); ++i)
 	{
-		const int table[13][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 0}, {1, -1, 0}, {1, 0, 1}, {1, 0, -1},
-		                          {0, 1, 1}, {0, 1, -1}, {1, 1, 1}, {1, 1, -1}, {1, -1, 1}, {-1, 1, 1}};
-		for (const auto& t : table)
-			dirs.emplace_back(double(t[0]), double(t[1]), double(t[2]));
-	}
-	else
-	{
-		const int table[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
-		for (const auto& t : table)
-			dirs.emplace_back(double(t[0]), double(t[1]));
-	}
-	const int m = int(dirs.size());
-	std::vector<double> hi(size_t(m), -std::numeric_limits<double>::infinity());
-	std::vector<double> lo(size_t(m), std::numeric_limits<double>::infinity());
-	std::vector<int> hiIdx(size_t(m), 0), loIdx(size_t(m), 0);
-	for (int i = 0; i < y.cols(); ++i)
-		for (int k = 0; k < m; ++k)
+		const Eigen::Matrix<double, D, 1> yi = T * c(i) - invWidth.cwiseProduct(mid);
+		y.col(i) = yi;
+		for (int k = 0; k < Probe::kCount; ++k)
 		{
-			const double p = dirs[size_t(k)].dot(y.col(i));
+			double p = 0.0;
+			for (int j = 0; j < D; ++j)
+				p += Probe::kTable[k][j] * yi[j];
 			if (p > hi[size_t(k)])
 			{
 				hi[size_t(k)] = p;
@@ -401,9 +469,10 @@ std::vector<int> directionalExtremes(const Eigen::Matrix<double, D, Eigen::Dynam
 				loIdx[size_t(k)] = i;
 			}
 		}
-	std::vector<int> out(hiIdx);
-	out.insert(out.end(), loIdx.begin(), loIdx.end());
-	return out;
+	}
+	probes.assign(hiIdx.begin(), hiIdx.end());
+	probes.insert(probes.end(), loIdx.begin(), loIdx.end());
+	return y;
 }
 
 /// Principal axes of a symmetric positive definite D x D shape matrix B = Q diag(lambda) Q^T by cyclic Jacobi rotations
@@ -458,13 +527,14 @@ bool principalAxes(Eigen::Matrix<double, D, D> B, Eigen::Matrix<double, D, D>& Q
 /// Solves in the frame's first D axes and maps the ellipsoid back to world coordinates. Thin axes (k >= D) get
 /// radius max(minRadius, 1e3 * half-width) so that the final rescale hardly moves (their offsets are <= 1e-3 r).
 template <int D>
-FitStatus solveInSubspace(const Eigen::Matrix3Xd& c, const Frame& f, const MveeOptions& options,
+FitStatus solveInSubspace(const Centred& c, const Frame& f, const MveeOptions& options,
                           const std::vector<int>& warm, Ellipsoid& out, EllipsoidFit& fit)
 {
-	const Eigen::Matrix<double, D, Eigen::Dynamic> y = whiten<D>(c, f);
+	std::vector<int> probes;
+	const Eigen::Matrix<double, D, Eigen::Dynamic> y = whiten<D>(c, f, probes);
 	ActiveSetKhachiyan<D> solver(y, options.tolerance, options.maxIterations);
 	std::vector<int> weighted;
-	std::vector<char> taken(size_t(c.cols()), 0);
+	std::vector<char> taken(size_t(c.size()), 0);
 	for (int k = 0; k < 2 * D; ++k)
 		if (!taken[size_t(f.kyPoints[size_t(k)])]++)
 			weighted.push_back(f.kyPoints[size_t(k)]);
@@ -472,7 +542,7 @@ FitStatus solveInSubspace(const Eigen::Matrix3Xd& c, const Frame& f, const MveeO
 		if (!taken[size_t(i)]++)
 			weighted.push_back(i);
 	std::vector<int> extra;
-	for (int i : directionalExtremes<D>(y))
+	for (int i : probes)
 		if (!taken[size_t(i)]++)
 			extra.push_back(i);
 	const FitStatus status = solver.solve(weighted, extra);
@@ -510,29 +580,39 @@ void makeProper(Ellipsoid& e)
 		e.rotation.col(0) = -e.rotation.col(0);
 }
 
-/// Scales the radii so that max zeta over all points is 1 (to rounding, and never above 1 + 1e-12), using exactly
-/// Ellipsoid::zeta so callers see the same numbers. Only the first `scaledAxes` radii take the main rescale (the thin
-/// axes of a degenerate fit keep minRadius; their points' offsets are negligible); the rounding guard scales all.
-/// Returns the max zeta before scaling.
-double rescaleToEnclose(const Eigen::MatrixX3d& points, Ellipsoid& e, int scaledAxes = 3)
+/// max over all points of zeta, evaluated like Ellipsoid::zeta (local = R^T (p - c), then scaled by 1/r; the division
+/// is replaced by a multiplication, which changes zeta by at most a few ulps).
+double maxZeta(const Eigen::MatrixX3d& points, const Ellipsoid& e)
 {
-	const auto maxZeta = [&]() {
-		double z = 0.0;
-		for (int i = 0; i < points.rows(); ++i)
-			z = std::max(z, e.zeta(points.row(i).transpose()));
-		return z;
-	};
-	const double first = maxZeta();
-	if (first > 0.0 && std::isfinite(first))
-		e.radii.head(scaledAxes) *= std::sqrt(first);
+	const Eigen::Matrix3d Rt = e.rotation.transpose();
+	const Eigen::Vector3d inv = e.radii.cwiseInverse();
+	double z = 0.0;
+	for (int i = 0; i < points.rows(); ++i)
+	{
+		const Eigen::Vector3d d(points(i, 0) - e.center[0], points(i, 1) - e.center[1], points(i, 2) - e.center[2]);
+		z = std::max(z, (Rt * d).cwiseProduct(inv).squaredNorm());
+	}
+	return z;
+}
+
+/// Scales the radii so that max zeta over all points is 1 (to a few ulps: the promise is <= 1 + 1e-9, rounding
+/// contributes ~1e-15 even 1 km from the origin). Only the first `scaledAxes` radii take the rescale (the thin axes
+/// of a degenerate fit keep minRadius); then a uniform pass fixes what the thin axes' tiny offsets leave over 1.
+void rescaleToEnclose(const Eigen::MatrixX3d& points, Ellipsoid& e, int scaledAxes)
+{
+	const double first = maxZeta(points, e);
+	if (!(first > 0.0) || !std::isfinite(first))
+		return; // all points at the centre (or a non-finite shape, caught by the caller's validity check)
+	e.radii.head(scaledAxes) *= std::sqrt(first) * (1.0 + kRescaleGuard);
+	if (scaledAxes == 3)
+		return; // uniform scaling: every zeta was divided by first (1 + guard)^2, so max zeta <= 1 up to rounding
 	for (int pass = 0; pass < 4; ++pass)
 	{
-		const double z = maxZeta();
-		if (z <= 1.0 + 1e-12 || !std::isfinite(z))
+		const double z = maxZeta(points, e);
+		if (z <= 1.0 || !std::isfinite(z))
 			break;
 		e.radii *= std::sqrt(z) * (1.0 + kRescaleGuard);
 	}
-	return first;
 }
 
 /// Last-resort enclosing ellipsoid: the one circumscribing the frame-aligned bounding box.
@@ -587,9 +667,9 @@ EllipsoidFit minimumVolumeEllipsoid(const Eigen::MatrixX3d& points, const MveeOp
 
 	// ---- Centre on the mean, build the Kumar-Yildirim frame, detect the rank -------------------------------------
 	const Eigen::Vector3d origin = points.colwise().mean().transpose();
-	const Eigen::Matrix3Xd c = (points.rowwise() - origin.transpose()).transpose();
+	const Centred c{points, origin};
 	const double magnitude = points.cwiseAbs().maxCoeff();
-	const Frame frame = buildFrame(c, origin, magnitude);
+	const Frame frame = buildFrame(c, magnitude);
 
 	EllipsoidFit fit;
 	Ellipsoid& e = fit.ellipsoid;
@@ -638,7 +718,7 @@ EllipsoidFit minimumVolumeEllipsoid(const Eigen::MatrixX3d& points, const MveeOp
 		// Should not happen (every branch above yields finite radii and an orthonormal frame); keep the promise anyway.
 		e = boxEllipsoid(frame, options.minRadius);
 		makeProper(e);
-		rescaleToEnclose(points, e);
+		rescaleToEnclose(points, e, 3);
 		e.radii = e.radii.cwiseMax(options.minRadius);
 		status = FitStatus::NumericalIssue;
 	}

@@ -1,0 +1,180 @@
+#pragma once
+/// \file bench_common.h
+/// Shared pieces of `bodyfit-bench`: the suite registry, median timing and result tables (markdown on stdout,
+/// CSV in --out DIR).
+///
+/// Adding a suite: create demos/bench/suite_<name>.cpp (demos/CMakeLists.txt globs demos/bench/suite_*.cpp into
+/// bodyfit-bench; re-run cmake after adding the file) and register it at namespace scope:
+///
+///   BODYFIT_BENCH_SUITE(kmeans, "pruned K-means on body regions")
+///   {
+///       bodyfit_bench::Table t({"n", "median ms"});
+///       const double ms = bodyfit_bench::medianMs(ctx.repeats, [&] { ... });
+///       t.addRow({bodyfit_bench::fmtInt(n), bodyfit_bench::fmt(ms, 3)});
+///       return bodyfit_bench::emit(ctx, "kmeans", t);
+///   }
+///
+/// The body receives `const bodyfit_bench::Context& ctx` and returns a process exit code (0 = ok).
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace bodyfit_bench
+{
+
+/// What the command line asked for.
+struct Context
+{
+	std::string outDir; ///< empty: no files; else each table is also written as <outDir>/<suite>[_<part>].csv
+	int repeats = 15;   ///< timed repetitions per measurement (the median is reported)
+};
+
+using SuiteFunction = int (*)(const Context&);
+
+struct Suite
+{
+	std::string name;
+	std::string description;
+	SuiteFunction run = nullptr;
+};
+
+/// All suites linked into the executable, in registration order (sorted by name when listed).
+inline std::vector<Suite>& registry()
+{
+	static std::vector<Suite> suites;
+	return suites;
+}
+
+struct SuiteRegistrar
+{
+	SuiteRegistrar(const char* name, const char* description, SuiteFunction run)
+	{
+		registry().push_back(Suite{name, description, run});
+	}
+};
+
+/// Defines and registers a suite; the braces that follow are its body (parameter `ctx`).
+#define BODYFIT_BENCH_SUITE(NAME, DESCRIPTION)                                                                        \
+	static int bodyfitBenchSuite_##NAME(const ::bodyfit_bench::Context& ctx);                                         \
+	static const ::bodyfit_bench::SuiteRegistrar bodyfitBenchRegistrar_##NAME(#NAME, DESCRIPTION,                     \
+	                                                                           &bodyfitBenchSuite_##NAME);          \
+	static int bodyfitBenchSuite_##NAME(const ::bodyfit_bench::Context& ctx)
+
+/// Median wall time in milliseconds of `repeats` calls of f (after one untimed warm-up call).
+template <class F>
+double medianMs(int repeats, F&& f)
+{
+	f();
+	std::vector<double> ms;
+	ms.reserve(size_t(std::max(1, repeats)));
+	for (int r = 0; r < std::max(1, repeats); ++r)
+	{
+		const auto t0 = std::chrono::steady_clock::now();
+		f();
+		const auto t1 = std::chrono::steady_clock::now();
+		ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+	}
+	std::sort(ms.begin(), ms.end());
+	const size_t m = ms.size() / 2;
+	return ms.size() % 2 == 1 ? ms[m] : 0.5 * (ms[m - 1] + ms[m]);
+}
+
+/// Fixed-point formatting with `digits` decimals; scientific when the value is tiny or huge.
+inline std::string fmt(double v, int digits = 3)
+{
+	char buf[64];
+	const double a = std::abs(v);
+	if (v != 0.0 && (a < 1e-3 || a >= 1e7))
+		std::snprintf(buf, sizeof buf, "%.*e", std::max(1, digits - 1), v);
+	else
+		std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+	return buf;
+}
+
+inline std::string fmtInt(long long v) { return std::to_string(v); }
+
+/// A result table: printed as markdown, written as CSV.
+class Table
+{
+public:
+	explicit Table(std::vector<std::string> header) : header_(std::move(header)) {}
+
+	void addRow(std::vector<std::string> row)
+	{
+		if (row.size() != header_.size())
+			throw std::logic_error("bench table row has " + std::to_string(row.size()) + " cells, header has " +
+			                       std::to_string(header_.size()));
+		rows_.push_back(std::move(row));
+	}
+
+	void printMarkdown(std::ostream& os) const
+	{
+		std::vector<size_t> w(header_.size());
+		for (size_t c = 0; c < header_.size(); ++c)
+		{
+			w[c] = header_[c].size();
+			for (const auto& r : rows_)
+				w[c] = std::max(w[c], r[c].size());
+		}
+		const auto line = [&](const std::vector<std::string>& cells) {
+			os << "|";
+			for (size_t c = 0; c < cells.size(); ++c)
+				os << " " << cells[c] << std::string(w[c] - cells[c].size(), ' ') << " |";
+			os << "\n";
+		};
+		line(header_);
+		os << "|";
+		for (size_t c = 0; c < header_.size(); ++c)
+			os << std::string(w[c] + 2, '-') << "|";
+		os << "\n";
+		for (const auto& r : rows_)
+			line(r);
+	}
+
+	/// \throws std::runtime_error naming the file when it cannot be written.
+	void writeCsv(const std::string& path) const
+	{
+		std::ofstream f(path);
+		if (!f)
+			throw std::runtime_error("cannot write " + path);
+		const auto line = [&](const std::vector<std::string>& cells) {
+			for (size_t c = 0; c < cells.size(); ++c)
+				f << (c ? "," : "") << cells[c];
+			f << "\n";
+		};
+		line(header_);
+		for (const auto& r : rows_)
+			line(r);
+		if (!f)
+			throw std::runtime_error("cannot write " + path);
+	}
+
+private:
+	std::vector<std::string> header_;
+	std::vector<std::vector<std::string>> rows_;
+};
+
+/// Prints the table (markdown) and, with --out, writes <outDir>/<stem>.csv. Returns 0.
+inline int emit(const Context& ctx, const std::string& stem, const Table& table)
+{
+	table.printMarkdown(std::cout);
+	std::cout << std::flush;
+	if (!ctx.outDir.empty())
+	{
+		std::filesystem::create_directories(ctx.outDir);
+		const std::string path = (std::filesystem::path(ctx.outDir) / (stem + ".csv")).string();
+		table.writeCsv(path);
+		std::cout << "(written " << path << ")\n";
+	}
+	return 0;
+}
+
+} // namespace bodyfit_bench
