@@ -18,8 +18,8 @@ const char* kUsage = R"(usage: bodyfit-fit MESH -o OUT.json [options]
 Fits ellipsoids to a body mesh (any format assimp reads) and writes them as JSON.
 
   -o OUT.json            output file (its directory is created if missing)
-  --mu-torso R           error threshold E_j for the torso (default 0.006 = 0.6% of the height)
-  --mu-limbs R           error threshold for head, arms and legs (default 0.004 = 0.4% of the height)
+  --mu-torso R           error threshold E_j for the torso (default 0.012 = 1.2% of the height)
+  --mu-limbs R           error threshold for head, arms and legs (default 0.009 = 0.9% of the height)
   --absolute             thresholds are in metres, not fractions of the height
   --max-ellipsoids N     budget: stop refining at N ellipsoids (default 128)
   --up y|z               up axis of the file (default y; z files are rotated to +y up)
@@ -34,6 +34,7 @@ Fits ellipsoids to a body mesh (any format assimp reads) and writes them as JSON
   -h, --help             this text
 
 E_j is the paper's fitting error: the mean radial distance of an ellipsoid's vertices to its surface.
+The whole-mesh path (--no-segmentation, or a failed segmentation) uses the torso threshold.
 The body is segmented into 15 regions (head, 6 torso parts, upper/lower arms and legs; the mesh must be
 +y up and face +z, so the subject's left is +x) and each region is fitted on its own. A mesh that is
 not a standing human is fitted as one region, with a warning. The largest connected component is

@@ -115,7 +115,7 @@ struct Group
 	std::vector<int> assignment;   ///< cluster of every point
 	std::vector<double> lowerBounds; ///< K-means warm-start bounds for `centers`
 	std::vector<Cluster> clusters;
-	bool localSplits = false;      ///< bisect with 2-means on the split cluster only (the generic whole-mesh path)
+	bool localSplits = false;      ///< split with K-means on the split cluster's points only (see reclusterGroup)
 };
 
 class Refiner
@@ -373,7 +373,7 @@ std::vector<Group> makeGroups(const TriMesh& mesh, const std::vector<Region>& la
 			initialCenters.push_back(mean(g.vertices));
 		}
 		g.mu = (g.torso || region == Region::Whole ? o.muTorso : o.muLimbs) * scale;
-		g.localSplits = region == Region::Whole;
+		g.localSplits = region == Region::Whole || !o.reclusterGroup;
 		g.points.resize(Eigen::Index(g.vertices.size()), 3);
 		for (std::size_t i = 0; i < g.vertices.size(); ++i)
 			g.points.row(Eigen::Index(i)) = mesh.V.row(g.vertices[i]);
@@ -425,6 +425,7 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 	result.params.sigma = options.sigma;
 	result.params.maxEllipsoids = options.maxEllipsoids;
 	result.params.minRadius = mvee.minRadius;
+	result.params.reclusterGroup = options.reclusterGroup;
 
 	// (a) Initial clusters: torso k = number of its parts (means of the parts), every other region k = 1.
 	std::vector<Eigen::MatrixX3d> initialCenters;

@@ -188,7 +188,8 @@ std::string toEllipsoidJson(const BodyFit& fit)
 					 {"relative_to_height", fit.params.relativeToHeight},
 					 {"sigma", fit.params.sigma},
 					 {"max_ellipsoids", fit.params.maxEllipsoids},
-					 {"min_radius", fit.params.minRadius}};
+					 {"min_radius", fit.params.minRadius},
+					 {"recluster_group", fit.params.reclusterGroup}};
 	Json list = Json::array();
 	for (const FittedEllipsoid& f : fit.ellipsoids)
 	{
@@ -294,6 +295,8 @@ BodyFit parseEllipsoidJson(const std::string& text, const std::string& name)
 			fit.params.maxEllipsoids = r.integer(p["max_ellipsoids"], "params.max_ellipsoids", 0);
 		if (p.contains("min_radius"))
 			fit.params.minRadius = r.nonNegative(p["min_radius"], "params.min_radius");
+		if (p.contains("recluster_group"))
+			fit.params.reclusterGroup = r.boolean(p["recluster_group"], "params.recluster_group");
 	}
 
 	const Json& list = r.require(doc, "ellipsoids", "");
