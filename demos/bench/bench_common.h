@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -35,6 +36,8 @@ struct Context
 {
 	std::string outDir; ///< empty: no files; else each table is also written as <outDir>/<suite>[_<part>].csv
 	int repeats = 15;   ///< timed repetitions per measurement (the median is reported)
+	bool repeatsGiven = false; ///< --repeats was on the command line (suites with their own default use it then)
+	bool quick = false;        ///< --quick: smaller sweeps / shorter runs (each suite says what it drops)
 };
 
 using SuiteFunction = int (*)(const Context&);
@@ -100,6 +103,14 @@ inline std::string fmt(double v, int digits = 3)
 }
 
 inline std::string fmtInt(long long v) { return std::to_string(v); }
+
+/// Shortest of fixed/scientific with `digits` significant digits (printf %g): parameters such as 1e-4.
+inline std::string fmtGeneral(double v, int digits = 3)
+{
+	char buf[64];
+	std::snprintf(buf, sizeof buf, "%.*g", digits, v);
+	return buf;
+}
 
 /// A result table: printed as markdown, written as CSV.
 class Table

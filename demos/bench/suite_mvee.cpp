@@ -1,7 +1,8 @@
 // Suite `mvee`: minimum-volume enclosing ellipsoid speed and accuracy on several point distributions.
 // For each distribution and size: median time of minimumVolumeEllipsoid (default options), Khachiyan iterations,
-// active-set and core-set sizes, the volume relative to a long-run reference (same solver at tolerance 1e-7), and the
-// largest zeta over all points after the final rescale (must be <= 1 + 1e-9).
+// active-set and core-set sizes, the volume relative to a long-run reference (same solver at tolerance 1e-7), the
+// largest zeta over all points after the final rescale (must be <= 1 + 1e-9), and the time of a warm start from the
+// run's own core set.
 #include "bench/bench_common.h"
 
 #include "bodyfit/errors.h"
@@ -126,7 +127,7 @@ BODYFIT_BENCH_SUITE(mvee, "minimum-volume enclosing ellipsoid: time, iterations,
 	reference.maxIterations = 50'000'000;
 
 	bodyfit_bench::Table t({"distribution", "n", "median ms", "iterations", "active set", "core", "status",
-	                        "volume / ref", "max zeta - 1", "ref iterations", "ref ms"});
+	                        "volume / ref", "max zeta - 1", "warm ms", "warm iterations", "ref iterations", "ref ms"});
 	bool enclosureOk = true;
 	for (const Distribution& d : dists)
 		for (int n : {500, 2000, 10000})
@@ -137,16 +138,43 @@ BODYFIT_BENCH_SUITE(mvee, "minimum-volume enclosing ellipsoid: time, iterations,
 			const double ms = bodyfit_bench::medianMs(ctx.repeats, [&] { fit = bodyfit::minimumVolumeEllipsoid(P); });
 			bodyfit::EllipsoidFit ref;
 			const double refMs = bodyfit_bench::medianMs(1, [&] { ref = bodyfit::minimumVolumeEllipsoid(P, reference); });
-			const double z = maxZeta(fit.ellipsoid, P);
+			// Warm start from the cold run's core set (what a refit after a small change would pass).
+			bodyfit::EllipsoidFit warm;
+			const double warmMs = bodyfit_bench::medianMs(
+				ctx.repeats, [&] { warm = bodyfit::minimumVolumeEllipsoid(P, {}, fit.coreIndices); });
+			const double z = std::max(maxZeta(fit.ellipsoid, P), maxZeta(warm.ellipsoid, P));
 			enclosureOk = enclosureOk && z <= 1.0 + 1e-9;
 			t.addRow({d.name, bodyfit_bench::fmtInt(n), bodyfit_bench::fmt(ms, 3), bodyfit_bench::fmtInt(fit.iterations),
 			          bodyfit_bench::fmtInt(fit.activeSetSize), bodyfit_bench::fmtInt(long(fit.coreIndices.size())),
 			          bodyfit::toString(fit.status),
 			          bodyfit_bench::fmt(fit.ellipsoid.volume() / ref.ellipsoid.volume(), 5),
-			          bodyfit_bench::fmt(z - 1.0, 2), bodyfit_bench::fmtInt(ref.iterations),
+			          bodyfit_bench::fmt(z - 1.0, 2), bodyfit_bench::fmt(warmMs, 3),
+			          bodyfit_bench::fmtInt(warm.iterations), bodyfit_bench::fmtInt(ref.iterations),
 			          bodyfit_bench::fmt(refMs, 2)});
 		}
 	const int rc = bodyfit_bench::emit(ctx, "mvee", t);
-	std::cout << "\nenclosure (every point zeta <= 1 + 1e-9): " << (enclosureOk ? "yes" : "NO") << "\n";
+	std::cout << "\nenclosure (every point zeta <= 1 + 1e-9): " << (enclosureOk ? "yes" : "NO") << "\n\n";
+
+	// Tolerance sweep: what the optimality gap costs and buys (volume excess over the reference).
+	bodyfit_bench::Table sweep({"distribution", "n", "tolerance", "median ms", "iterations", "volume / ref"});
+	for (const Distribution& d : {dists[0], dists[3]})
+	{
+		const int n = 10000;
+		std::mt19937 rng(1234u + unsigned(n));
+		const Eigen::MatrixX3d P = d.make(n, rng);
+		const double refVolume = bodyfit::minimumVolumeEllipsoid(P, reference).ellipsoid.volume();
+		for (double tol : {1e-2, 1e-3, 1e-4, 1e-5})
+		{
+			bodyfit::MveeOptions o;
+			o.tolerance = tol;
+			bodyfit::EllipsoidFit fit;
+			const double ms = bodyfit_bench::medianMs(ctx.repeats, [&] { fit = bodyfit::minimumVolumeEllipsoid(P, o); });
+			enclosureOk = enclosureOk && maxZeta(fit.ellipsoid, P) <= 1.0 + 1e-9;
+			sweep.addRow({d.name, bodyfit_bench::fmtInt(n), bodyfit_bench::fmtGeneral(tol), bodyfit_bench::fmt(ms, 3),
+			              bodyfit_bench::fmtInt(fit.iterations),
+			              bodyfit_bench::fmt(fit.ellipsoid.volume() / refVolume, 5)});
+		}
+	}
+	bodyfit_bench::emit(ctx, "mvee_tolerance", sweep);
 	return enclosureOk ? rc : 1;
 }

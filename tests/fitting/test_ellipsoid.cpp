@@ -280,3 +280,29 @@ TEST_CASE("ellipsoid: closest point of an outside point is along the surface nor
 			CHECK((dir - n).norm() < 1e-6);
 		}
 }
+
+TEST_CASE("ellipsoid: cloth nodes exactly on the surface", "[fitting][ellipsoid]")
+{
+	std::mt19937 rng(17);
+	for (const Ellipsoid& e : testEllipsoids(rng))
+		for (int k = 0; k < 200; ++k)
+		{
+			// A node projected onto the surface (as the collider leaves it) has zeta = 1 up to rounding.
+			const Eigen::Vector3d q = e.radialProjection(e.toWorld(randomUnitVector(rng).cwiseProduct(e.radii)));
+			const Eigen::Vector3d n = e.normalAt(q);
+			const double R = maxRadius(e);
+			// Moving inwards from the surface: the segment is inside from (essentially) its start. Either the
+			// rounding put q inside (startsInside) or the entry is within 1e-6 of the start (relative 1e-8 zeta
+			// error along a segment crossing the surface at a steep angle).
+			const SegmentEntry in = segmentEntry(e, q, q - 0.5 * e.radii.minCoeff() * n);
+			CHECK(in.hit);
+			CHECK(in.t <= 1e-6);
+			// Moving outwards along the normal never enters (a start inside by rounding reports startsInside).
+			const SegmentEntry out = segmentEntry(e, q, q + 0.1 * R * n);
+			CHECK((!out.hit || out.startsInside));
+			// Distance of a surface point to the surface is zero (1e-9 R: rounding of the local frame).
+			const SurfacePoint sp = closestSurfacePoint(e, q);
+			CHECK(std::abs(sp.signedDistance) <= 1e-9 * R);
+			CHECK((sp.point - q).norm() <= 1e-8 * R);
+		}
+}
