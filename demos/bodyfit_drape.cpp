@@ -1,0 +1,261 @@
+// bodyfit-drape: runs a drape scene headless (DESIGN.md sec. 6).
+//   bodyfit-drape SCENE.json [--body MESH] [--ellipsoids FIT.json] [--collider KIND] [--steps N]
+//                 [--frames DIR] [--metrics OUT.json] [--png OUT.png] [--show body|ellipsoids]
+// Exit status: 0 success, 2 bad input (one-line reason on stderr), 1 failure while running or writing.
+
+#include "offscreen_renderer.h"
+#include "scene.h"
+#include "simulation.h"
+
+#include "bodyfit/errors.h"
+#include "bodyfit/mesh_io.h"
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <string>
+
+namespace
+{
+
+const char* kUsage =
+	"usage: bodyfit-drape SCENE.json [--body MESH] [--ellipsoids FIT.json] [--collider KIND] [--steps N]\n"
+	"                     [--frames DIR] [--metrics OUT.json] [--png OUT.png] [--show body|ellipsoids]\n"
+	"\n"
+	"Runs a cloth scene (demos/scenes/*.json) headless with Bullet and writes metrics and pictures.\n"
+	"  --body MESH          body mesh instead of the scene's body.mesh\n"
+	"  --ellipsoids FIT     fitted ellipsoid JSON (from bodyfit-fit) instead of the scene's body.ellipsoids/fit\n"
+	"  --collider KIND      ellipsoids | mesh-bvh | convex-hull-compound | none (overrides collider.kind)\n"
+	"  --steps N            number of steps (default: the scene's solver.steps)\n"
+	"  --frames DIR         write the cloth as DIR/frame_NNNNN.obj every output.frame_every steps,\n"
+	"                       plus DIR/frames.json (step, time, body pose per frame)\n"
+	"  --metrics OUT.json   write the metrics (steps, nodes, ms_per_step, collision_ms_per_step,\n"
+	"                       nodes_inside_body, max_nodes_inside_body, mean_contact_gap_m, nan_nodes, ...)\n"
+	"  --png OUT.png        picture of the final state: front and side views, body (or ellipsoids) + cloth\n"
+	"  --show WHAT          draw the body mesh (default) or the ellipsoids in the picture\n"
+	"Progress goes to stderr, a summary to stdout. Exit status: 0 ok, 2 bad input, 1 failure.\n";
+
+[[noreturn]] void badInput(const std::string& message)
+{
+	std::cerr << "bodyfit-drape: " << message << "\n";
+	std::exit(2);
+}
+
+struct Args
+{
+	std::string scene, body, ellipsoids, collider, frames, metrics, png, show;
+	int steps = -1;
+};
+
+Args parseArgs(int argc, char** argv)
+{
+	Args a;
+	for (int i = 1; i < argc; ++i)
+	{
+		const std::string s = argv[i];
+		auto value = [&]() -> std::string {
+			if (i + 1 >= argc)
+				badInput("option " + s + " needs a value (see --help)");
+			return argv[++i];
+		};
+		if (s == "--help" || s == "-h")
+		{
+			std::cout << kUsage;
+			std::exit(0);
+		}
+		else if (s == "--body")
+			a.body = value();
+		else if (s == "--ellipsoids")
+			a.ellipsoids = value();
+		else if (s == "--collider")
+			a.collider = value();
+		else if (s == "--frames")
+			a.frames = value();
+		else if (s == "--metrics")
+			a.metrics = value();
+		else if (s == "--png")
+			a.png = value();
+		else if (s == "--show")
+		{
+			a.show = value();
+			if (a.show != "body" && a.show != "ellipsoids")
+				badInput("--show: '" + a.show + "' is not one of body, ellipsoids");
+		}
+		else if (s == "--steps")
+		{
+			const std::string v = value();
+			char* end = nullptr;
+			const long n = std::strtol(v.c_str(), &end, 10);
+			if (v.empty() || *end != '\0' || n < 0 || n > 10000000)
+				badInput("--steps: '" + v + "' is not an integer in 0..10000000");
+			a.steps = int(n);
+		}
+		else if (!s.empty() && s[0] == '-')
+			badInput("unknown option " + s + " (see --help)");
+		else if (a.scene.empty())
+			a.scene = s;
+		else
+			badInput("unexpected argument '" + s + "' (one scene file only)");
+	}
+	if (a.scene.empty())
+		badInput("missing SCENE.json (see --help)");
+	return a;
+}
+
+bodyfit::render::DrawMesh toDraw(const bodyfit::TriMesh& m, const Eigen::Vector3f& color, bool twoSided)
+{
+	bodyfit::render::DrawMesh d;
+	d.V = m.V;
+	d.F = m.F;
+	d.color = color;
+	d.twoSided = twoSided;
+	return d;
+}
+
+void writeFrame(const std::string& dir, const bodyfit::drape::DrapeSimulation& sim, nlohmann::json& index)
+{
+	char name[64];
+	std::snprintf(name, sizeof(name), "frame_%05d.obj", sim.stepsDone());
+	bodyfit::saveTriMesh((std::filesystem::path(dir) / name).string(), sim.clothMesh());
+	const Eigen::Isometry3d pose = sim.bodyPose();
+	nlohmann::json m = nlohmann::json::array();
+	for (int r = 0; r < 4; ++r)
+		m.push_back({pose.matrix()(r, 0), pose.matrix()(r, 1), pose.matrix()(r, 2), pose.matrix()(r, 3)});
+	index["frames"].push_back({{"step", sim.stepsDone()}, {"time_s", sim.time()}, {"file", name}, {"body_pose", m}});
+}
+
+} // namespace
+
+int main(int argc, char** argv)
+{
+	using namespace bodyfit;
+	using namespace bodyfit::drape;
+	const Args args = parseArgs(argc, argv);
+
+	Scene scene;
+	BodyData body;
+	std::unique_ptr<DrapeSimulation> sim;
+	try
+	{
+		scene = loadScene(args.scene);
+		if (!args.collider.empty())
+			scene.collider.kind = colliderKindFromString(args.collider);
+		if (!args.show.empty())
+			scene.render.showEllipsoids = args.show == "ellipsoids";
+		for (const std::string* p : {&args.body, &args.ellipsoids})
+			if (!p->empty() && !std::filesystem::is_regular_file(*p))
+				throw InvalidInputError("file '" + *p + "' does not exist");
+		std::cerr << "bodyfit-drape: loading body " << (args.body.empty() ? scene.body.mesh : args.body) << "\n";
+		body = loadBody(scene, args.body, args.ellipsoids);
+		sim = std::make_unique<DrapeSimulation>(scene, body);
+	}
+	catch (const FormatError& e)
+	{
+		badInput(e.what());
+	}
+	catch (const MeshLoadError& e)
+	{
+		badInput(e.what());
+	}
+	catch (const InvalidInputError& e)
+	{
+		badInput(e.what());
+	}
+
+	const int steps = args.steps >= 0 ? args.steps : scene.solver.steps;
+	nlohmann::json frameIndex;
+	try
+	{
+		if (!args.frames.empty())
+		{
+			std::filesystem::create_directories(args.frames);
+			frameIndex["scene"] = scene.path;
+			frameIndex["frames"] = nlohmann::json::array();
+			writeFrame(args.frames, *sim, frameIndex);
+		}
+		std::cerr << "bodyfit-drape: " << scene.name << ", " << sim->nodeCount() << " cloth nodes, "
+				  << sim->colliderDescription() << "\n";
+		auto lastPrint = std::chrono::steady_clock::now() - std::chrono::seconds(1);
+		auto progress = [&](int done, int total, const StepStats& st) {
+			const auto now = std::chrono::steady_clock::now();
+			if (done != total && now - lastPrint < std::chrono::milliseconds(250))
+				return;
+			lastPrint = now;
+			std::fprintf(stderr, "\rstep %d/%d  t=%.3f s  %.2f ms/step (collision %.2f)   ", done, total, sim->time(),
+						 st.seconds * 1e3, st.collisionSeconds * 1e3);
+			if (done == total)
+				std::fprintf(stderr, "\n");
+		};
+		auto afterStep = [&](int k) {
+			if (!args.frames.empty() && (k % scene.frameEvery == 0 || k == steps))
+				writeFrame(args.frames, *sim, frameIndex);
+		};
+		nlohmann::json metrics = runAndMeasure(*sim, steps, progress, afterStep);
+
+		std::cout << "scene      " << scene.name << " (" << scene.path << ")\n"
+				  << "collider   " << sim->colliderDescription() << "\n"
+				  << "cloth      " << toString(scene.garment.type) << ", " << sim->nodeCount() << " nodes, effects:";
+		for (const std::string& e : scene.effects.listed())
+			std::cout << " " << e;
+		std::cout << "\n";
+		std::printf("steps      %d x %.5f s (%d substeps), %.3f s simulated\n", steps, scene.solver.dt,
+					scene.solver.substeps, sim->time());
+		std::printf("cost       %.3f ms/step (median %.3f), collision %.3f ms/step, %.0f ns/node/step\n",
+					metrics["ms_per_step"].get<double>(), metrics["ms_per_step_median"].get<double>(),
+					metrics["collision_ms_per_step"].get<double>(), metrics["ns_per_node_step"].get<double>());
+		std::cout << "quality    nodes inside body: end " << metrics["nodes_inside_body"] << ", max "
+				  << metrics["max_nodes_inside_body"] << " (sampled every " << scene.sampleEvery
+				  << " steps); inside ellipsoids " << metrics["nodes_inside_ellipsoids"] << "; NaN nodes "
+				  << metrics["nan_nodes"] << "\n"
+				  << "contact    " << metrics["contact_nodes"] << " nodes, mean gap to skin "
+				  << metrics["mean_contact_gap_m"] << " m\n";
+
+		if (!args.metrics.empty())
+		{
+			std::ofstream out(args.metrics);
+			if (!out)
+				throw std::runtime_error(args.metrics + ": cannot open for writing");
+			out << metrics.dump(2) << "\n";
+			if (!out)
+				throw std::runtime_error(args.metrics + ": write failed");
+			std::cout << "metrics    " << args.metrics << "\n";
+		}
+		if (!args.frames.empty())
+		{
+			std::ofstream out((std::filesystem::path(args.frames) / "frames.json").string());
+			out << frameIndex.dump(1) << "\n";
+			if (!out)
+				throw std::runtime_error(args.frames + "/frames.json: write failed");
+			std::cout << "frames     " << frameIndex["frames"].size() << " OBJ files in " << args.frames << "\n";
+		}
+		if (!args.png.empty())
+		{
+			std::vector<render::DrawMesh> meshes;
+			if (scene.render.showEllipsoids && !body.ellipsoids.empty())
+			{
+				for (const Ellipsoid& e : sim->ellipsoidsWorld())
+				{
+					meshes.push_back(render::ellipsoidMesh(e.center, e.rotation, e.radii));
+					meshes.back().color = Eigen::Vector3f(0.85f, 0.68f, 0.55f);
+				}
+			}
+			else
+				meshes.push_back(toDraw(sim->bodyMeshWorld(), Eigen::Vector3f(0.86f, 0.72f, 0.62f), false));
+			meshes.push_back(toDraw(sim->clothMesh(), Eigen::Vector3f(0.22f, 0.42f, 0.78f), true));
+			render::RenderOptions ro;
+			ro.width = scene.render.width;
+			ro.height = scene.render.height;
+			render::writePng(args.png, render::renderTwoViews(meshes, ro));
+			std::cout << "picture    " << args.png << " (" << ro.width << "x" << ro.height << ", front | side)\n";
+		}
+	}
+	catch (const std::exception& e)
+	{
+		std::cerr << "\nbodyfit-drape: " << e.what() << "\n";
+		return 1;
+	}
+	return 0;
+}
