@@ -304,14 +304,36 @@ LoadedMesh loadTriMesh(const std::string& path, const LoadOptions& options)
 	Assimp::Importer importer;
 	// Points and lines are removed; we only want triangles. Node transforms are baked (glTF, FBX).
 	importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-	const aiScene* scene = importer.ReadFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices |
-		aiProcess_SortByPType);
-	if (scene == nullptr)
-	{
+	// Two phases, so that corrupt data never reaches assimp's post-processing steps (which crash or abort on it):
+	// 1. read + ValidateDataStructure (rejects out-of-range indices: a truncated binary PLY, tests/data/
+	//    robust_truncated.ply, otherwise segfaults assimp 5.2 in a later step);
+	// 2. our own check of the one inconsistency validation lets through and TriangulateProcess asserts on
+	//    (abort): a mesh flagged as having polygons without any face of more than 3 indices (a truncated ASCII
+	//    PLY, tests/data/robust_truncated_ascii.ply);
+	// 3. the post-processing proper.
+	const aiScene* scene = importer.ReadFile(path, aiProcess_ValidateDataStructure);
+	auto readFailed = [&]() {
 		std::string why = importer.GetErrorString();
 		std::replace(why.begin(), why.end(), '\n', ' ');
-		throw MeshLoadError(path + ": cannot read mesh: " + why);
+		return MeshLoadError(path + ": cannot read mesh: " + why);
+	};
+	if (scene == nullptr)
+		throw readFailed();
+	for (unsigned m = 0; m < scene->mNumMeshes; ++m)
+	{
+		const aiMesh* mesh = scene->mMeshes[m];
+		if ((mesh->mPrimitiveTypes & aiPrimitiveType_POLYGON) == 0)
+			continue;
+		bool polygon = false;
+		for (unsigned f = 0; f < mesh->mNumFaces && !polygon; ++f)
+			polygon = mesh->mFaces[f].mNumIndices > 3;
+		if (!polygon)
+			throw MeshLoadError(path + ": corrupt or truncated face data (mesh " + std::to_string(m) +
+								" declares polygons it does not have)");
 	}
+	scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_PreTransformVertices | aiProcess_SortByPType);
+	if (scene == nullptr)
+		throw readFailed();
 	if ((scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0 || scene->mNumMeshes == 0)
 		throw MeshLoadError(path + ": file contains no triangle mesh");
 

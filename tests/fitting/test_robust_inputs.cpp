@@ -1,0 +1,173 @@
+// The bad-input catalogue of docs/ROBUSTNESS.md (issue 7, item 3), fitting side: every file in tests/data used there
+// gives exactly the documented behaviour, a typed exception with a one-line message naming the file and the
+// problem, or the documented repair. (CLI exit codes: tests/robustness/cli_exit_codes.sh; scenes:
+// tests/bullet_ext/test_robust_scene_inputs.cpp.)
+#include "bodyfit/ellipsoid_io.h"
+#include "bodyfit/errors.h"
+#include "bodyfit/mesh_io.h"
+#include "bodyfit/mvee.h"
+#include "bodyfit/segmentation.h"
+
+#include "support_paths.h"
+
+#include <catch2/catch.hpp>
+
+#include <string>
+
+namespace
+{
+
+using namespace bodyfit;
+using bodyfit_test::dataPath;
+
+/// The message is one line and names the file.
+template <class Error, class F>
+std::string oneLineError(F&& f, const std::string& file)
+{
+	try
+	{
+		f();
+	}
+	catch (const Error& e)
+	{
+		const std::string what = e.what();
+		CHECK(what.find('\n') == std::string::npos);
+		CHECK(what.find(file) != std::string::npos);
+		return what;
+	}
+	FAIL("no " << typeid(Error).name() << " for " << file);
+	return "";
+}
+
+std::string meshError(const std::string& file)
+{
+	return oneLineError<MeshLoadError>([&] { loadTriMesh(dataPath(file)); }, file);
+}
+
+std::string inputError(const std::string& file, const LoadOptions& options = {})
+{
+	return oneLineError<InvalidInputError>([&] { loadTriMesh(dataPath(file), options); }, file);
+}
+
+std::string jsonError(const std::string& file)
+{
+	return oneLineError<FormatError>([&] { readEllipsoidJson(dataPath(file)); }, file);
+}
+
+} // namespace
+
+TEST_CASE("robust catalogue: unreadable mesh files are MeshLoadError naming the file", "[robust][inputs][mesh]")
+{
+	CHECK_THAT(meshError("robust_does_not_exist.obj"), Catch::EndsWith(": cannot open file"));
+	CHECK_THAT(meshError("empty.obj"), Catch::EndsWith(": file is empty"));
+	// Truncated files: assimp either rejects them (the reason is appended) or reads nothing usable.
+	CHECK_THAT(meshError("truncated.obj"), Catch::Contains("truncated.obj: "));
+	CHECK_THAT(meshError("robust_truncated.ply"), Catch::Contains("robust_truncated.ply: "));
+	CHECK_THAT(meshError("robust_truncated.glb"), Catch::Contains("robust_truncated.glb: "));
+	CHECK_THAT(meshError("garbage.bin"), Catch::Contains("garbage.bin: "));
+}
+
+TEST_CASE("robust catalogue: a truncated ASCII PLY is rejected", "[robust][inputs][mesh]")
+{
+	// Two and a half vertex lines for a header of 4 vertices and 4 faces: either the reader fails (MeshLoadError),
+	// or it yields no usable faces / too few points (InvalidInputError). Never a crash, never a silent success.
+	bool rejected = false;
+	try
+	{
+		loadTriMesh(dataPath("robust_truncated_ascii.ply"));
+	}
+	catch (const MeshLoadError& e)
+	{
+		rejected = std::string(e.what()).find("robust_truncated_ascii.ply") != std::string::npos;
+	}
+	catch (const InvalidInputError& e)
+	{
+		rejected = std::string(e.what()).find("robust_truncated_ascii.ply") != std::string::npos;
+	}
+	CHECK(rejected);
+}
+
+TEST_CASE("robust catalogue: unusable geometry is InvalidInputError naming the problem", "[robust][inputs][mesh]")
+{
+	CHECK_THAT(inputError("nan_vertex.obj"), Catch::Contains("non-finite coordinate"));
+	CHECK_THAT(inputError("robust_inf_vertex.obj"), Catch::Contains("non-finite coordinate"));
+	CHECK_THAT(inputError("single_triangle.obj"), Catch::Contains("fewer than 4 distinct points"));
+	// Five copies of one point: welding leaves one vertex, every face is degenerate.
+	const std::string identical = inputError("robust_identical.obj");
+	CHECK((identical.find("degenerate") != std::string::npos || identical.find("fewer than 4") != std::string::npos));
+	LoadOptions badScale;
+	badScale.scale = -1.0;
+	CHECK_THAT(inputError("tetra.obj", badScale), Catch::Contains("scale must be a positive finite number"));
+}
+
+TEST_CASE("robust catalogue: non-manifold and self-intersecting meshes load unchanged", "[robust][inputs][mesh]")
+{
+	// Documented behaviour: no manifold repair is attempted (the fitter needs vertices and an edge graph, not a
+	// manifold); every face is kept, the report counts components.
+	const LoadedMesh nm = loadTriMesh(dataPath("robust_nonmanifold.obj"));
+	CHECK(nm.full.faceCount() == 6);
+	CHECK(nm.report.degenerateFaces == 0);
+	CHECK(nm.report.components == 1); // the fin and the bow-tie triangle (sharing only vertex 4) are connected
+	CHECK(nm.mesh.faceCount() == 6);
+	const LoadedMesh si = loadTriMesh(dataPath("robust_self_intersecting.obj"));
+	CHECK(si.report.components == 2);
+	CHECK(si.mesh.vertexCount() == 4); // the largest component (a tie broken deterministically) is fitted
+	CHECK(si.full.vertexCount() == 8);
+	CHECK(si.report.droppedComponentVertices == 4);
+	// Both still give a finite enclosing MVEE.
+	const EllipsoidFit fit = minimumVolumeEllipsoid(si.full.V);
+	for (int i = 0; i < si.full.vertexCount(); ++i)
+		CHECK(fit.ellipsoid.zeta(si.full.V.row(i).transpose()) <= 1 + 1e-9);
+}
+
+TEST_CASE("robust catalogue: millimetres and z-up are converted only when asked", "[robust][inputs][mesh]")
+{
+	// Never guessed: without --scale the millimetre tetrahedron is 1700 m tall; the report says scale 1.
+	const LoadedMesh raw = loadTriMesh(dataPath("robust_millimetre.obj"));
+	CHECK(raw.report.height == Approx(1700.0));
+	CHECK(raw.report.scale == 1.0);
+	LoadOptions mm;
+	mm.scale = 0.001;
+	const LoadedMesh m = loadTriMesh(dataPath("robust_millimetre.obj"), mm);
+	CHECK(m.report.height == Approx(1.7).epsilon(1e-12)); // exact up to one rounding of the product
+	CHECK(m.report.scale == 0.001);
+
+	const LoadedMesh zRaw = loadTriMesh(dataPath("robust_zup.obj"));
+	CHECK(zRaw.report.height == Approx(0.2));
+	LoadOptions zUp;
+	zUp.up = UpAxis::Z;
+	const LoadedMesh z = loadTriMesh(dataPath("robust_zup.obj"), zUp);
+	CHECK(z.report.height == Approx(1.7));
+	CHECK(z.report.up == UpAxis::Z);
+}
+
+TEST_CASE("robust catalogue: a non-human mesh is not segmented and does not crash", "[robust][inputs][mesh]")
+{
+	// A sphere (icosphere of 642 vertices): segmentation reports failure with a reason and labels everything Whole;
+	// the generic fitting path (one region) then applies (DESIGN.md sec. 2).
+	FittedEllipsoid sphere;
+	sphere.ellipsoid.radii = Eigen::Vector3d(0.3, 0.3, 0.3);
+	const TriMesh ball = ellipsoidMesh({sphere}, 3);
+	const Segmentation s = segmentBody(ball);
+	CHECK_FALSE(s.ok);
+	CHECK_FALSE(s.failureReason.empty());
+	CHECK(s.failureReason.find('\n') == std::string::npos);
+	REQUIRE(s.labels.size() == std::size_t(ball.vertexCount()));
+	for (Region r : s.labels)
+		CHECK(r == Region::Whole);
+}
+
+TEST_CASE("robust catalogue: bad ellipsoid JSON is FormatError naming the field", "[robust][inputs][json]")
+{
+	CHECK_THAT(jsonError("robust_axes_negative.json"), Catch::Contains("ellipsoids[0].axes[1]: must be > 0 (got -0.12)"));
+	CHECK_THAT(jsonError("robust_axes_zero.json"), Catch::Contains("ellipsoids[0].axes[2]: must be > 0 (got 0)"));
+	CHECK_THAT(jsonError("robust_rotation_nonunit.json"),
+			   Catch::Contains("ellipsoids[0].rotation: must be a unit quaternion"));
+	CHECK_THAT(jsonError("robust_missing_axes.json"), Catch::Contains("ellipsoids[0].axes: missing"));
+	CHECK_THAT(jsonError("robust_does_not_exist.json"), Catch::Contains("cannot open"));
+	CHECK_THAT(jsonError("garbage.bin"), Catch::Contains("not valid JSON"));
+	CHECK_THAT(jsonError("empty.obj"), Catch::Contains("not valid JSON"));
+	// The valid one-ellipsoid file next to them parses.
+	const BodyFit ok = readEllipsoidJson(dataPath("robust_valid_one.json"));
+	CHECK(ok.ellipsoids.size() == 1);
+}
