@@ -18,8 +18,16 @@ point nearest the start position wins (which removes the paper's Figure 6 cases 
 namespace
 {
 
-/// Largest number of exit-direction candidates tried when a node is pushed out of the union.
-const int kMaxPushDirections = 24;
+/// Largest number of exit-direction candidates tried when a node is pushed out of the union
+/// (7 per containing ellipsoid: the normal and both directions of each principal axis).
+const int kMaxPushDirections = 56;
+
+/// Rounding repair: at most this many steps out along a normal, starting at 2 ulps of the coordinates and
+/// doubling (30 ulps in total); anything that needs more is a geometric problem for the union push-out.
+const int kMaxNudges = 4;
+
+/// Two entries along one path closer than this (metres) are a tie (the path meets a crease of the union).
+const btScalar kTieDistance = btScalar(1e-6);
 
 /// True if no coordinate is NaN or infinite (inf - inf and NaN - NaN are NaN).
 inline bool isFinite(const btVector3& a, const btVector3& b)
@@ -309,11 +317,14 @@ btScalar btEllipsoidClothCollider::unionExitAlongRay(const btVector3& origin, co
 		m_intervals[2 * j + 3] = s1;
 		m_intervalOwner[j + 1] = owner;
 	}
+	// Intervals that start within a few ulps of the current exit count as overlapping: two ellipsoids that touch
+	// share a boundary point, and stopping there would leave the node on (rounding: inside) the second one.
+	const btScalar scale = origin.absolute()[origin.absolute().maxAxis()] + btScalar(1e-3);
 	btScalar s = btScalar(0);
 	int exit = -1;
 	for (int i = 0; i < count; ++i)
 	{
-		if (m_intervals[2 * i] > s)
+		if (m_intervals[2 * i] > s + SIMD_EPSILON * btScalar(8) * (scale + s))
 			break;
 		if (m_intervals[2 * i + 1] > s)
 		{
@@ -326,18 +337,63 @@ btScalar btEllipsoidClothCollider::unionExitAlongRay(const btVector3& origin, co
 	return s;
 }
 
-btScalar btEllipsoidClothCollider::minZetaAll(const btVector3& p) const
+btScalar btEllipsoidClothCollider::minZetaAll(const btVector3& p, int* which) const
 {
 	const btEllipsoidWorldCache& cache = m_current;
 	btScalar best = SIMD_INFINITY;
+	int bestIndex = -1;
 	for (int k = 0; k < cache.size(); ++k)
 	{
 		const btEllipsoidWorldCache::Entry& e = cache[k];
 		if (!boxesOverlap(p, p, e.m_aabbMin, e.m_aabbMax))
 			continue;
-		best = btMin(best, (e.m_whiten * (p - e.m_center)).length2());
+		const btScalar z = (e.m_whiten * (p - e.m_center)).length2();
+		if (z < best)
+		{
+			best = z;
+			bestIndex = k;
+		}
 	}
+	if (which)
+		*which = bestIndex;
 	return best;
+}
+
+btScalar btEllipsoidClothCollider::minZetaOver(const int* candidates, int count, const btVector3& p, int* which) const
+{
+	btScalar best = SIMD_INFINITY;
+	int bestIndex = -1;
+	for (int j = 0; j < count; ++j)
+	{
+		const btEllipsoidWorldCache::Entry& e = m_current[candidates[j]];
+		const btScalar z = (e.m_whiten * (p - e.m_center)).length2();
+		if (z < best)
+		{
+			best = z;
+			bestIndex = candidates[j];
+		}
+	}
+	if (which)
+		*which = bestIndex;
+	return best;
+}
+
+btScalar btEllipsoidClothCollider::nudgeOut(const int* candidates, int count, btVector3& p,
+											const btVector3& fallbackDir) const
+{
+	int worst = -1;
+	btScalar z = minZetaOver(candidates, count, p, &worst);
+	btScalar step = SIMD_EPSILON * btScalar(2) * (p.absolute()[p.absolute().maxAxis()] + btScalar(1e-3));
+	for (int attempt = 0; attempt < kMaxNudges && z < btScalar(1) && worst >= 0; ++attempt)
+	{
+		const btEllipsoidWorldCache::Entry& e = m_current[worst];
+		const btVector3 g = transposeTimes(e.m_whiten, e.m_whiten * (p - e.m_center));
+		const btScalar gl = g.length();
+		p += (gl > SIMD_EPSILON ? g / gl : fallbackDir) * step;
+		step *= btScalar(2);
+		z = minZetaOver(candidates, count, p, &worst);
+	}
+	return z;
 }
 
 btScalar btEllipsoidClothCollider::pushOut(btSoftBody::Node& node, const btVector3& from, const btVector3& start,
@@ -345,11 +401,12 @@ btScalar btEllipsoidClothCollider::pushOut(btSoftBody::Node& node, const btVecto
 {
 	const btEllipsoidWorldCache& cache = m_current;
 	const btScalar skin = btMax(m_config.m_skinOffset, btScalar(0));
-	// Candidate directions: for each ellipsoid containing the point, its outward normal there (the direction to
-	// its nearest surface point for shallow penetrations) and, near its centre, both ends of its shortest axis.
+	// Candidate directions, for each ellipsoid containing the point: its outward normal there (the direction to its
+	// nearest surface point for shallow penetrations) and both directions of its three principal axes (the way out
+	// of a thin ellipsoid near its mid-plane). The exit of the whole union is measured along each; the shortest wins.
 	btVector3 dirs[kMaxPushDirections];
 	int ndirs = 0;
-	for (int k = 0; k < cache.size() && ndirs + 2 <= kMaxPushDirections; ++k)
+	for (int k = 0; k < cache.size() && ndirs + 7 <= kMaxPushDirections; ++k)
 	{
 		const btEllipsoidWorldCache::Entry& e = cache[k];
 		if (!boxesOverlap(from, from, e.m_aabbMin, e.m_aabbMax))
@@ -358,28 +415,20 @@ btScalar btEllipsoidClothCollider::pushOut(btSoftBody::Node& node, const btVecto
 		const btScalar z = u.length2();
 		if (!(z < btScalar(1)))
 			continue;
-		btVector3 g = transposeTimes(e.m_whiten, u);
+		const btVector3 g = transposeTimes(e.m_whiten, u);
 		const btScalar gl = g.length();
-		if (z > btScalar(1e-6) && gl > SIMD_EPSILON)
+		if (gl > SIMD_EPSILON)
 			dirs[ndirs++] = g / gl;
-		else
+		for (int axis = 0; axis < 3; ++axis)
 		{
-			// At the centre the gradient vanishes: leave along the shortest semi-axis (column of R diag(a)).
-			btVector3 c0(e.m_unwhiten[0][0], e.m_unwhiten[1][0], e.m_unwhiten[2][0]);
-			btVector3 c1(e.m_unwhiten[0][1], e.m_unwhiten[1][1], e.m_unwhiten[2][1]);
-			btVector3 c2(e.m_unwhiten[0][2], e.m_unwhiten[1][2], e.m_unwhiten[2][2]);
-			btVector3 shortest = c0;
-			if (c1.length2() < shortest.length2())
-				shortest = c1;
-			if (c2.length2() < shortest.length2())
-				shortest = c2;
-			shortest.normalize();
-			dirs[ndirs++] = shortest;
-			dirs[ndirs++] = -shortest;
+			btVector3 column(e.m_unwhiten[0][axis], e.m_unwhiten[1][axis], e.m_unwhiten[2][axis]);
+			column.normalize();
+			dirs[ndirs++] = column;
+			dirs[ndirs++] = -column;
 		}
 	}
 	if (ndirs == 0)
-		return minZetaAll(from); // not inside anything (caller's tolerance): nothing to do
+		return minZetaAll(from, 0); // not inside anything (caller's tolerance): nothing to do
 
 	btScalar bestS = SIMD_INFINITY;
 	int bestDir = -1, bestExit = -1;
@@ -395,14 +444,20 @@ btScalar btEllipsoidClothCollider::pushOut(btSoftBody::Node& node, const btVecto
 		}
 	}
 	btVector3 out = from + dirs[bestDir] * bestS;
-	// Rounding can leave the exit point a hair inside when the skin is 0: step on by a relative epsilon.
-	btScalar z = minZetaAll(out);
-	btScalar nudge = btMax(SIMD_EPSILON * btScalar(16) * (from.length() + btScalar(1)), btScalar(1e-7));
-	for (int attempt = 0; attempt < 8 && z < btScalar(1); ++attempt)
+	// Rounding can leave the exit point a hair inside when the skin is 0: step out along the normal of the
+	// ellipsoid that still contains it (not along the ray, which may leave at a grazing angle), by a few ulps of
+	// the coordinates, growing geometrically.
+	int worst = -1;
+	btScalar z = minZetaAll(out, &worst);
+	btScalar nudge = SIMD_EPSILON * btScalar(2) * (out.absolute()[out.absolute().maxAxis()] + btScalar(1e-3));
+	for (int attempt = 0; attempt < kMaxNudges && z < btScalar(1) && worst >= 0; ++attempt)
 	{
-		out += dirs[bestDir] * nudge;
-		nudge *= btScalar(4);
-		z = minZetaAll(out);
+		const btEllipsoidWorldCache::Entry& e = cache[worst];
+		btVector3 g = transposeTimes(e.m_whiten, e.m_whiten * (out - e.m_center));
+		const btScalar gl = g.length();
+		out += (gl > SIMD_EPSILON ? g / gl : dirs[bestDir]) * nudge;
+		nudge *= btScalar(2);
+		z = minZetaAll(out, &worst);
 	}
 	btVector3 normal = dirs[bestDir];
 	if (bestExit >= 0)
@@ -440,6 +495,8 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 	unsigned* stamp = &cache.m_stamp[0];
 	m_candidates.resize(ne);
 	int* cand = &m_candidates[0];
+	m_candidateT.resize(ne);
+	btScalar* tvals = &m_candidateT[0];
 	const bool moving = m_moving;
 	const btTransform delta = m_delta;
 
@@ -527,7 +584,8 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 			const btScalar zx = ux.length2();
 			const btScalar zq = uq.length2();
 			zMinX = btMin(zMinX, zx);
-			if (zq <= btScalar(1))
+			tvals[j] = btScalar(2);
+			if (zq < btScalar(1))
 			{
 				startInside = true;
 				continue;
@@ -545,6 +603,7 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 			}
 			if (t > btScalar(1) && zx < btScalar(1))
 				t = btScalar(1); // the end is inside but rounding lost the root
+			tvals[j] = t;
 			if (t <= btScalar(1) && t < tBest)
 			{
 				tBest = t;
@@ -579,22 +638,74 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 		const btVector3 surface = e.m_center + e.m_unwhiten * uHit;
 		btVector3 normal = transposeTimes(e.m_whiten, uHit);
 		normal.normalize(); // |W^T u| >= 1 / max(a) > 0 for |u| = 1
+		// Entries tied with the earliest one (the path meets a crease, Figure 6 case 1): the skin offset goes along
+		// the sum of their normals, so the answer does not depend on the order of the ellipsoids.
+		const btScalar tieTolerance = kTieDistance / btMax((x - q).length(), kTieDistance);
+		int ties = 0;
+		btVector3 normalSum(0, 0, 0);
+		for (int j = 0; j < nc; ++j)
+		{
+			if (!(tvals[j] <= tBest + tieTolerance))
+				continue;
+			const btEllipsoidWorldCache::Entry& ej = entries[cand[j]];
+			btVector3 uj = ej.m_whiten * (surface - ej.m_center);
+			const btScalar ujl = uj.length();
+			if (ujl > btScalar(0))
+				uj /= ujl;
+			normalSum += transposeTimes(ej.m_whiten, uj).normalized();
+			++ties;
+		}
+		if (ties > 1 && normalSum.length2() > SIMD_EPSILON)
+			normal = normalSum.normalized();
 		const btVector3 placed = surface + normal * skin;
 		applyVelocityRule(node, surface, normal, q, e.m_center, dt);
 		node.m_x = placed;
 
-		// Guarantee: the placed node must be outside every nearby ellipsoid (a crease can put the skin offset
-		// inside a neighbour). The candidates cover the path box grown by the skin, which contains `placed`.
-		btScalar zPlaced = SIMD_INFINITY;
-		for (int j = 0; j < nc; ++j)
-		{
-			const btEllipsoidWorldCache::Entry& ej = entries[cand[j]];
-			zPlaced = btMin(zPlaced, (ej.m_whiten * (placed - ej.m_center)).length2());
-		}
+		// Guarantee: the placed node must be outside every nearby ellipsoid. The entry point itself is outside the
+		// others (it is the earliest entry), but in a crease the skin offset can reach into a neighbour: then the
+		// offset is shortened (bisection) to the largest part that stays outside. The candidates cover the path
+		// box grown by the skin, which contains every point tried here.
+		btScalar zPlaced = minZetaOver(cand, nc, placed, 0);
 		if (zPlaced < btScalar(1))
 		{
-			++stats.m_nodesRepaired;
-			zPlaced = pushOut(node, placed, q, dt);
+			btVector3 fixedPoint = placed;
+			btScalar zFixed = minZetaOver(cand, nc, surface, 0);
+			if (zFixed >= btScalar(1))
+			{
+				btScalar lo = btScalar(0), hi = skin;
+				fixedPoint = surface;
+				for (int it = 0; it < 16; ++it)
+				{
+					const btScalar mid = btScalar(0.5) * (lo + hi);
+					const btVector3 trial = surface + normal * mid;
+					const btScalar zt = minZetaOver(cand, nc, trial, 0);
+					if (zt >= btScalar(1))
+					{
+						lo = mid;
+						fixedPoint = trial;
+						zFixed = zt;
+					}
+					else
+						hi = mid;
+				}
+			}
+			else
+			{
+				// The surface point itself rounds to inside (skin 0, or far from the origin): step out along the
+				// normal of the ellipsoid that contains it by a few ulps of the coordinates.
+				fixedPoint = surface;
+				zFixed = nudgeOut(cand, nc, fixedPoint, normal);
+			}
+			if (zFixed >= btScalar(1))
+			{
+				node.m_x = fixedPoint;
+				zPlaced = zFixed;
+			}
+			else
+			{
+				++stats.m_nodesRepaired;
+				zPlaced = pushOut(node, fixedPoint, q, dt);
+			}
 		}
 		minZeta = btMin(minZeta, zPlaced);
 	}

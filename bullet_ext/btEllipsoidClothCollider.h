@@ -151,6 +151,7 @@ private:
 	btEllipsoidClothStats m_lastStats;
 	btEllipsoidClothStats m_accumulatedStats;
 	btAlignedObjectArray<int> m_candidates;
+	btAlignedObjectArray<btScalar> m_candidateT;
 	btAlignedObjectArray<btScalar> m_intervals;
 	btAlignedObjectArray<int> m_intervalOwner;
 
@@ -160,7 +161,9 @@ private:
 	void applyVelocityRule(btSoftBody::Node& node, const btVector3& surfacePoint, const btVector3& normal,
 						   const btVector3& start, const btVector3& center, btScalar dt) const;
 	btScalar unionExitAlongRay(const btVector3& origin, const btVector3& dir, btScalar skin, int* exitEllipsoid);
-	btScalar minZetaAll(const btVector3& p) const;
+	btScalar minZetaAll(const btVector3& p, int* which) const;
+	btScalar minZetaOver(const int* candidates, int count, const btVector3& p, int* which) const;
+	btScalar nudgeOut(const int* candidates, int count, btVector3& p, const btVector3& fallbackDir) const;
 	btScalar pushOut(btSoftBody::Node& node, const btVector3& from, const btVector3& start, btScalar dt);
 };
 
