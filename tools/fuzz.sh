@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# Runs every libFuzzer target of fuzz/ for a fixed time each, starting from seed corpora built from tests/data and
+# the bundled scenes/fits. Any crash, sanitizer report, timeout or leak fails the run (exit 1) and leaves the input in
+# BUILD/fuzz-artifacts/<target>/; turn it into a regression test (docs/ROBUSTNESS.md, "Fuzzing").
+#
+#   tools/fuzz.sh [BUILD_DIR] [SECONDS_PER_TARGET] [TARGET...]
+#
+# BUILD_DIR defaults to build-fuzz, configured and built here if needed (clang, ASan+UBSan, -DBODYFIT_FUZZ=ON).
+# CI (tools/ci-extra.sh) runs 45 s per target. The long run documented in docs/ROBUSTNESS.md is
+#   tools/fuzz.sh build-fuzz 3600        # one hour per target; the corpora persist in BUILD_DIR/fuzz-corpus/
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BUILD=${1:-build-fuzz}
+SECONDS_PER_TARGET=${2:-60}
+shift $(( $# >= 2 ? 2 : $# ))
+TARGETS=("$@")
+if [ ${#TARGETS[@]} -eq 0 ]; then
+	TARGETS=(fuzz_ellipsoid_json fuzz_mesh_file fuzz_repair_mesh fuzz_scene)
+fi
+
+if [ ! -f "$BUILD/CMakeCache.txt" ]; then
+	CC=clang CXX=clang++ cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBODYFIT_FUZZ=ON \
+		-DBODYFIT_SANITIZE=ON -DBODYFIT_BUILD_TESTS=OFF -DBODYFIT_BUILD_DEMOS=ON
+fi
+cmake --build "$BUILD" --target "${TARGETS[@]}" -j"$(nproc)"
+
+# Seed corpora (regenerated each run; what the fuzzer finds accumulates next to them in the same directory).
+seed_dir() { mkdir -p "$BUILD/fuzz-corpus/$1"; echo "$BUILD/fuzz-corpus/$1"; }
+S=$(seed_dir fuzz_ellipsoid_json)
+cp tests/data/robust_*.json "$S/" 2>/dev/null || true
+rm -f "$S/robust_scene_unknown_key.json"
+S=$(seed_dir fuzz_scene)
+cp demos/scenes/*.json tests/data/robust_scene_unknown_key.json "$S/"
+S=$(seed_dir fuzz_mesh_file)
+# First byte = extension index in fuzz_mesh_file.cpp: 0 .obj, 1 .ply, 3 .glb, 9 .bin.
+for f in tests/data/*.obj; do { printf '\000'; cat "$f"; } >"$S/seed_$(basename "$f")"; done
+for f in tests/data/*.ply; do { printf '\001'; cat "$f"; } >"$S/seed_$(basename "$f")"; done
+for f in tests/data/*.glb; do { printf '\003'; cat "$f"; } >"$S/seed_$(basename "$f")"; done
+{ printf '\011'; head -c 256 tests/data/garbage.bin; } >"$S/seed_garbage.bin"
+S=$(seed_dir fuzz_repair_mesh)
+# 4 vertices, 4 faces, grid mode: a tetrahedron on the 0.1 grid; and the same in raw-double mode (mostly NaN-free).
+printf '\003\004\001\000\000\000\001\000\000\000\001\000\000\000\001\000\002\001\000\001\003\000\003\002\001\002\003\000' >"$S/seed_tetra_grid"
+head -c 200 tests/data/garbage.bin >"$S/seed_garbage"
+
+status=0
+for t in "${TARGETS[@]}"; do
+	exe="$BUILD/fuzz/$t"
+	[ -x "$exe" ] || { echo "fuzz: $t not built, skipped"; continue; }
+	art="$BUILD/fuzz-artifacts/$t/"
+	mkdir -p "$art" "$BUILD/fuzz-logs"
+	log="$BUILD/fuzz-logs/$t.log"
+	echo "== $t: ${SECONDS_PER_TARGET}s =="
+	set +e
+	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+		"$exe" "$BUILD/fuzz-corpus/$t" -max_total_time="$SECONDS_PER_TARGET" -timeout=20 -rss_limit_mb=2048 \
+		-max_len=65536 -artifact_prefix="$art" -print_final_stats=1 >"$log" 2>&1
+	rc=$?
+	set -e
+	runs=$(grep -Eo 'stat::number_of_executed_units: *[0-9]+' "$log" | grep -Eo '[0-9]+$' || echo "?")
+	cov=$(grep -Eo 'cov: [0-9]+' "$log" | tail -n 1 || true)
+	echo "$t: exit $rc, $runs executions, $cov, corpus $(ls "$BUILD/fuzz-corpus/$t" | wc -l) files"
+	if [ $rc -ne 0 ]; then
+		status=1
+		echo "$t: FAILED, input(s) in $art"; grep -E "ERROR|SUMMARY|runtime error" "$log" | head -5
+	fi
+done
+exit $status
