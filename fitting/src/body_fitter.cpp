@@ -253,7 +253,8 @@ public:
 				oldTotal += old.error * double(old.members.size());
 			}
 			Cluster& c = fresh[std::size_t(j)];
-			fitCluster(g, c);
+			// Warm start from the cluster these points came from: the old cluster j, or the split one.
+			fitCluster(g, c, j < k ? &g.clusters[std::size_t(j)] : &src);
 			newWorst = std::max(newWorst, c.error);
 			newTotal += c.error * double(c.members.size());
 		}
@@ -276,13 +277,31 @@ public:
 	}
 
 private:
-	void fitCluster(const Group& g, Cluster& c)
+	/// MVEE and E_j of a cluster. With `parent`, the parent's MVEE core points that are also in this cluster
+	/// seed the active set (mvee.h warm start).
+	void fitCluster(const Group& g, Cluster& c, const Cluster* parent = nullptr)
 	{
 		Clock::time_point t0 = Clock::now();
 		buffer_.resize(Eigen::Index(c.members.size()), 3);
 		for (std::size_t r = 0; r < c.members.size(); ++r)
 			buffer_.row(Eigen::Index(r)) = g.points.row(c.members[r]);
-		c.fit = minimumVolumeEllipsoid(buffer_, mvee_);
+		warm_.clear();
+		if (parent != nullptr)
+		{
+			if (rowOf_.size() < std::size_t(g.points.rows()))
+				rowOf_.assign(std::size_t(g.points.rows()), -1);
+			for (std::size_t r = 0; r < c.members.size(); ++r)
+				rowOf_[std::size_t(c.members[r])] = int(r);
+			for (int core : parent->fit.coreIndices)
+			{
+				const int row = rowOf_[std::size_t(parent->members[std::size_t(core)])];
+				if (row >= 0)
+					warm_.push_back(row);
+			}
+			for (int m : c.members)
+				rowOf_[std::size_t(m)] = -1;
+		}
+		c.fit = warm_.empty() ? minimumVolumeEllipsoid(buffer_, mvee_) : minimumVolumeEllipsoid(buffer_, mvee_, warm_);
 		Clock::time_point t1 = Clock::now();
 		mveeMs += std::chrono::duration<double, std::milli>(t1 - t0).count();
 		c.error = meanRadialError(c.fit.ellipsoid, g.points, c.members);
@@ -292,6 +311,8 @@ private:
 	KMeansOptions kmeans_;
 	MveeOptions mvee_;
 	Eigen::MatrixX3d buffer_;
+	std::vector<int> warm_;  ///< warm-start rows of the cluster being fitted
+	std::vector<int> rowOf_; ///< group point -> row in the cluster being fitted, -1 elsewhere (kept all -1 between uses)
 };
 
 void validate(const TriMesh& mesh, const std::vector<Region>& labels, const BodyFitOptions& o)
