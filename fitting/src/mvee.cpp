@@ -580,18 +580,14 @@ void makeProper(Ellipsoid& e)
 		e.rotation.col(0) = -e.rotation.col(0);
 }
 
-/// max over all points of zeta, evaluated like Ellipsoid::zeta (local = R^T (p - c), then scaled by 1/r; the division
-/// is replaced by a multiplication, which changes zeta by at most a few ulps).
+/// max over all points of Ellipsoid::zeta itself: the rescale below then only changes the final division by the radii,
+/// so its rounding guard holds however thin the ellipsoid is (a re-implementation with another operation order can
+/// differ by ~1e-16 / (thinnest axis ratio) in zeta, e.g. 1e-10 for a 1e6:1 disc).
 double maxZeta(const Eigen::MatrixX3d& points, const Ellipsoid& e)
 {
-	const Eigen::Matrix3d Rt = e.rotation.transpose();
-	const Eigen::Vector3d inv = e.radii.cwiseInverse();
 	double z = 0.0;
 	for (int i = 0; i < points.rows(); ++i)
-	{
-		const Eigen::Vector3d d(points(i, 0) - e.center[0], points(i, 1) - e.center[1], points(i, 2) - e.center[2]);
-		z = std::max(z, (Rt * d).cwiseProduct(inv).squaredNorm());
-	}
+		z = std::max(z, e.zeta(Eigen::Vector3d(points(i, 0), points(i, 1), points(i, 2))));
 	return z;
 }
 

@@ -324,3 +324,62 @@ TEST_CASE("mvee: iteration cap, warm start and determinism", "[fitting][mvee]")
 	CHECK(again.iterations == cold.iterations);
 	CHECK(again.coreIndices == cold.coreIndices);
 }
+
+TEST_CASE("mvee: symmetric, tied and adversarial sets", "[fitting][mvee]")
+{
+	std::mt19937 rng(28);
+	SECTION("cube corners and an integer lattice: the circumsphere (all M_i tie)")
+	{
+		Eigen::MatrixX3d corners(8, 3), lattice(1000, 3);
+		int k = 0;
+		for (int a : {-1, 1})
+			for (int b : {-1, 1})
+				for (int c : {-1, 1})
+					corners.row(k++) << a, b, c;
+		k = 0;
+		for (int a = 0; a < 10; ++a)
+			for (int b = 0; b < 10; ++b)
+				for (int c = 0; c < 10; ++c)
+					lattice.row(k++) << a, b, c;
+		// By symmetry the MVEE is the circumscribed sphere: radius sqrt(3) and 4.5 sqrt(3). The rescale leaves
+		// only the 1e-3 tolerance's shape error: radii within 2e-3 relative.
+		for (const auto& [P, radius] : {std::make_pair(corners, std::sqrt(3.0)), std::make_pair(lattice, 4.5 * std::sqrt(3.0))})
+		{
+			const EllipsoidFit fit = minimumVolumeEllipsoid(P);
+			CHECK(fit.status == FitStatus::Ok);
+			requireSound(fit, P);
+			for (int a = 0; a < 3; ++a)
+				CHECK(fit.ellipsoid.radii[a] == Approx(radius).epsilon(2e-3));
+		}
+	}
+	SECTION("a simplex (with a duplicated vertex) is optimal at uniform weights")
+	{
+		Eigen::MatrixX3d P(5, 3);
+		P << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 1;
+		const EllipsoidFit fit = minimumVolumeEllipsoid(P);
+		CHECK(fit.status == FitStatus::Ok);
+		requireSound(fit, P);
+		// MVEE of a simplex: centred on the centroid, every vertex on the surface (max zeta = 1 to rounding, 1e-12).
+		CHECK((fit.ellipsoid.center - Eigen::Vector3d::Constant(0.25)).norm() <= 1e-12);
+		for (int i = 0; i < 4; ++i)
+			CHECK(fit.ellipsoid.zeta(P.row(i).transpose()) == Approx(1.0).epsilon(1e-12));
+	}
+	SECTION("a far outlier, two distant clusters and a 1e6:1 disc stay enclosed and tight")
+	{
+		Eigen::MatrixX3d outlier = bodyfit_test::gaussianSamples({0.01, 0.01, 0.01}, 3000, rng);
+		outlier.row(0) << 10.0, 0.0, 0.0;
+		Eigen::MatrixX3d clusters(4000, 3);
+		clusters << bodyfit_test::gaussianSamples({0.01, 0.01, 0.01}, 2000, rng),
+			bodyfit_test::gaussianSamples({0.01, 0.01, 0.01}, 2000, rng).rowwise() + Eigen::RowVector3d(1.0, 0.0, 0.0);
+		const Ellipsoid disc = bodyfit_test::makeEllipsoid({5.0, 0.0, 0.0}, {1.0, 1.0, 1e-6}, randomRotation(rng));
+		MveeOptions fine;
+		fine.minRadius = 1e-9; // below the disc's thickness: no flooring
+		for (const Eigen::MatrixX3d& P : {outlier, clusters, bodyfit_test::surfaceSamples(disc, 3000, rng)})
+		{
+			const EllipsoidFit fit = minimumVolumeEllipsoid(P, fine);
+			CHECK(fit.status == FitStatus::Ok);
+			requireSound(fit, P, fine);
+			CHECK(maxZeta(fit.ellipsoid, P) >= 1.0 - 1e-12); // the rescale's guard costs ~4e-15
+		}
+	}
+}

@@ -34,7 +34,7 @@ struct EllipsoidFit
 ///
 /// Algorithm: the points are centred on their mean and rotated/scaled into a frame built from the Kumar-Yildirim
 /// directions (MVEE is affine-equivariant, so this only improves conditioning: 1000:1 sets stay well posed). Khachiyan's
-/// barycentric ascent with Todd-Yildirim away/drop steps runs on an active set (KY points + extreme points along 13
+/// barycentric ascent with Todd-Yildirim away/drop steps runs on an active set (KY points + extreme points along 7
 /// directions), with Sherman-Morrison updates of the (d+1)x(d+1) inverse and of diag(M) only. When the active set is
 /// optimal within `tolerance`, all N points are checked in O(N); the worst violators join and the solve continues.
 /// Finally the shape is rescaled in world coordinates so that max zeta over all points is 1 (to rounding).
