@@ -69,7 +69,8 @@ void printSummary(const bodyfit::LoadedMesh& loaded, const bodyfit::BodyFit& fit
 	if (r.droppedComponentVertices > 0)
 		std::cout << ", " << r.droppedComponentVertices << " vertices in smaller components ignored";
 	std::cout << ")\n";
-	std::cout << "  frame     up " << bodyfit::toString(r.up) << " converted to +y, scale " << r.scale
+	std::cout << "  frame     file up " << bodyfit::toString(r.up)
+			  << (r.up == bodyfit::UpAxis::Y ? " (no rotation)" : " (rotated to +y up)") << ", scale " << r.scale
 			  << ", height " << fit.source.height << " m\n";
 	std::cout << "  regions   " << regions << "\n";
 	std::cout << "  fit       " << fit.ellipsoids.size() << " ellipsoids, refinement " << bodyfit::toString(fit.status)

@@ -9,6 +9,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 namespace bodyfit
@@ -551,9 +552,12 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 	const double reportMs = msSince(tReport);
 
 	if (degenerate > 0)
+	{
+		char radius[32];
+		std::snprintf(radius, sizeof radius, "%.2f mm", mvee.minRadius * 1000.0);
 		result.warnings.push_back(std::to_string(degenerate) +
-								  " ellipsoid(s) fitted to flat or tiny clusters: thin axes floored to " +
-								  std::to_string(mvee.minRadius * 1000.0) + " mm");
+								  " ellipsoid(s) fitted to flat or tiny clusters: thin axes floored to " + radius);
+	}
 	if (notConverged > 0)
 		result.warnings.push_back(std::to_string(notConverged) +
 								  " MVEE(s) hit the iteration cap (rescaled to enclose their points)");
