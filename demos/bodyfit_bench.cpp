@@ -13,11 +13,13 @@ std::string usage()
 {
 	std::vector<bodyfit_bench::Suite> suites = bodyfit_bench::registry();
 	std::sort(suites.begin(), suites.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
-	std::string s = "usage: bodyfit-bench SUITE [--out DIR] [--repeats N]\n"
+	std::string s = "usage: bodyfit-bench SUITE [--out DIR] [--repeats N] [--quick]\n"
 	                "Runs a benchmark suite (Release build, single thread) and prints markdown tables of medians.\n"
 	                "  SUITE          one of the suites below, or `all`\n"
 	                "  --out DIR      also write each table as DIR/<table>.csv (DIR is created)\n"
-	                "  --repeats N    timed repetitions per measurement, median reported (default 15, 1..10000)\n"
+	                "  --repeats N    timed repetitions per measurement, median reported (default 15, 1..10000;\n"
+	                "                 the study suites have their own defaults, see their descriptions)\n"
+	                "  --quick        smaller sweeps and shorter runs (study suites)\n"
 	                "  -h, --help     this text\n"
 	                "suites:\n";
 	for (const auto& suite : suites)
@@ -31,7 +33,7 @@ std::string usage()
 int main(int argc, char** argv)
 {
 	return bodyfit_cli::runMain("bodyfit-bench", [&] {
-		bodyfit_cli::Args args(argc, argv, {{"--out", true, "DIR"}, {"--repeats", true, "N"}});
+		bodyfit_cli::Args args(argc, argv, {{"--out", true, "DIR"}, {"--repeats", true, "N"}, {"--quick", false, ""}});
 		if (args.helpRequested())
 		{
 			std::cout << usage();
@@ -41,6 +43,8 @@ int main(int argc, char** argv)
 		bodyfit_bench::Context ctx;
 		ctx.outDir = args.value("--out");
 		ctx.repeats = args.integer("--repeats", ctx.repeats, 1, 10000);
+		ctx.repeatsGiven = args.has("--repeats");
+		ctx.quick = args.has("--quick");
 		const std::string name = args.positional()[0];
 		std::vector<bodyfit_bench::Suite> suites = bodyfit_bench::registry();
 		std::sort(suites.begin(), suites.end(), [](const auto& a, const auto& b) { return a.name < b.name; });

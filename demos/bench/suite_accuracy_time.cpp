@@ -1,0 +1,219 @@
+// bodyfit-bench accuracy-time: what accuracy costs in time. For every bundled full-resolution body, a sweep of the
+// refinement thresholds (coarse -> fine) and of the --max-ellipsoids budgets 16/32/64/128; per point: ellipsoid
+// count, fit time, mean radial error (paper eq. 6), air gap mean/p95/max, skin outside the union, voxel IoU
+// (fit_quality.h), and a short cloth patch drop over the head and shoulders with the ellipsoid collider: collision
+// ns per node per step, contact gap and nodes inside the real body mesh. (Bullet's mesh collider is compared in the
+// garment-resolution, body-resolution and colliders suites: on this drop it costs minutes per body.)
+#include "bench/study_common.h"
+
+#include "bodyfit/fit_quality.h"
+
+namespace
+{
+
+using namespace bodyfit_study;
+
+struct Setting
+{
+	std::string kind; ///< "threshold" or "budget"
+	double muTorso;
+	double muLimbs;
+	int budget;
+};
+
+std::vector<Setting> settings(bool quick)
+{
+	std::vector<Setting> s;
+	// Thresholds (fractions of the height H), torso/limbs ratio 4:3 as the defaults (1.2% / 0.9%), from coarse to
+	// fine. The budget cap of the threshold sweep is high enough not to stop it.
+	const double torso[] = {0.040, 0.030, 0.022, 0.016, 0.012, 0.009, 0.0075, 0.006, 0.005};
+	for (size_t i = 0; i < sizeof torso / sizeof torso[0]; ++i)
+	{
+		if (quick && i % 2 == 1)
+			continue;
+		s.push_back({"threshold", torso[i], torso[i] * 0.75, 400});
+	}
+	// Budgets: thresholds far below reach, so the budget is what stops the refinement.
+	for (int b : {16, 32, 64, 128})
+		s.push_back({"budget", 0.001, 0.00075, b});
+	return s;
+}
+
+/// Marks the Pareto-optimal rows (no other row of the same body is at least as good in both cost and error and
+/// better in one).
+std::vector<bool> paretoFront(const std::vector<double>& cost, const std::vector<double>& error)
+{
+	std::vector<bool> front(cost.size(), true);
+	for (size_t i = 0; i < cost.size(); ++i)
+		for (size_t j = 0; j < cost.size(); ++j)
+			if (j != i && cost[j] <= cost[i] && error[j] <= error[i] && (cost[j] < cost[i] || error[j] < error[i]))
+			{
+				front[i] = false;
+				break;
+			}
+	return front;
+}
+
+int runAccuracyTime(const bodyfit_bench::Context& ctx)
+{
+	const char* tag = "accuracy-time";
+	const int fitRepeats = ctx.repeatsGiven ? ctx.repeats : (ctx.quick ? 1 : 3);
+	const int drapeRepeats = ctx.repeatsGiven ? std::min(ctx.repeats, 3) : 1;
+	PatchDrop drop;
+	drop.resolution = ctx.quick ? 25 : 31;
+	drop.steps = ctx.quick ? 60 : 90;
+	bodyfit::FitQualityOptions qopt;
+	qopt.sampleSpacing = ctx.quick ? 0.008 : 0.005;
+	const int voxelResolution = ctx.quick ? 96 : 128;
+	const std::vector<Setting> sweep = settings(ctx.quick);
+
+	Table t({"body", "kind", "mu_torso", "mu_limbs", "budget", "ellipsoids", "fit_ms", "radial_error_mm",
+			 "air_gap_mean_mm", "air_gap_p95_mm", "air_gap_max_mm", "union_under_skin_pct", "skin_outside_pct",
+			 "skin_outside_max_mm", "voxel_iou", "body_covered_pct", "union_outside_body_pct", "coll_ns_node_step", "coll_ms_step", "step_ms", "contact_nodes",
+			 "contact_gap_mm", "inside_body_end", "inside_body_max", "pareto"});
+	int rc = 0;
+	for (const BodyAsset& asset : bundledBodies())
+	{
+		const auto tb = std::chrono::steady_clock::now();
+		progress(tag, "%s: load + segmentation", asset.full.c_str());
+		const LoadedBody body = loadBody(asset.full, 1);
+		const bodyfit::FitQualityReference reference(body.mesh.full, voxelResolution);
+		progress(tag, "%s: fit-quality reference %.0f ms (%lld body voxels, %.1f mm)", asset.full.c_str(),
+				 reference.milliseconds(), reference.bodyVoxelCount(), reference.voxelSize() * 1e3);
+
+		std::vector<std::vector<std::string>> rows;
+		std::vector<double> cost, error;
+		for (const Setting& s : sweep)
+		{
+			bodyfit::BodyFitOptions o;
+			o.muTorso = s.muTorso;
+			o.muLimbs = s.muLimbs;
+			o.maxEllipsoids = s.budget;
+			o.maxSplits = 4000;
+			o.trueDistance = false; // the fit_quality metrics below measure distances properly
+			double fitMs = 0.0;
+			const bodyfit::BodyFit fit = timedFit(body, o, fitRepeats, &fitMs);
+			const std::vector<bodyfit::Ellipsoid> ells = ellipsoidsOf(fit);
+			const bodyfit::FitQuality q = bodyfit::measureFitQuality(reference, ells, qopt);
+			const bodyfit::drape::Scene scene =
+				patchDropScene(assetPath(asset.full), body.mesh.full, bodyfit::drape::ColliderKind::Ellipsoids, drop);
+			const bodyfit::drape::BodyData bd = bodyData(body.mesh.full, ells, assetPath(asset.full), "sweep");
+			const DrapeResult d = runDrape(scene, bd, drapeRepeats, drop.steps);
+			if (d.nanNodes > 0)
+				rc = 1;
+			progress(tag, "%s %s mu=%.4f/%.4f budget=%d: %zu ellipsoids, fit %.0f ms, gap %.1f mm, IoU %.3f, "
+						  "%.0f ns/node/step",
+					 asset.name.c_str(), s.kind.c_str(), s.muTorso, s.muLimbs, s.budget, ells.size(), fitMs,
+					 q.airGapMean * 1e3, q.voxelIoU, d.collisionNsPerNodeStep);
+			rows.push_back({asset.name, s.kind, fmt(s.muTorso, 4), fmt(s.muLimbs, 5), fmtInt(s.budget),
+							fmtInt(long(ells.size())), fmt(fitMs, 1), fmt(fit.meanRadialError() * 1e3, 2),
+							fmt(q.airGapMean * 1e3, 2), fmt(q.airGapP95 * 1e3, 2), fmt(q.airGapMax * 1e3, 1),
+							fmt(q.unionInsideBodyFraction * 100, 2), fmt(q.skinOutsideFraction * 100, 2),
+							fmt(q.skinOutsideMax * 1e3, 1), fmt(q.voxelIoU, 4),
+							fmt(100.0 * double(q.intersectionVoxels) / double(std::max(1LL, q.bodyVoxels)), 1),
+							fmt(100.0 * double(q.unionVoxels - q.intersectionVoxels) /
+									double(std::max(1LL, q.unionVoxels)),
+								1),
+							fmt(d.collisionNsPerNodeStep, 0),
+							fmt(d.collisionMsPerStep, 3), fmt(d.msPerStep, 2), fmtInt(d.contactNodes),
+							fmt(d.meanContactGapM * 1e3, 2), fmtInt(d.nodesInsideBody),
+							fmtInt(d.maxNodesInsideBody), ""});
+			cost.push_back(fitMs);
+			error.push_back(q.airGapMean);
+		}
+		// Pareto front of fit time vs mean air gap (per body).
+		const std::vector<bool> front = paretoFront(cost, error);
+		for (size_t i = 0; i < rows.size(); ++i)
+		{
+			rows[i].back() = front[i] ? "1" : "0";
+			t.addRow(rows[i]);
+		}
+
+		progress(tag, "%s done in %.0f s", asset.name.c_str(), secondsSince(tb));
+	}
+
+	std::ostringstream notes;
+	notes << "Fit time: median of " << fitRepeats << " fits (the \"fitting\" stage, after segmentation; single thread). "
+		  << "Air gap: area-weighted over the union surface outside the body, samples every "
+		  << qopt.sampleSpacing * 1e3 << " mm; union_under_skin_pct: share of the union surface inside the body mesh; "
+		  << "skin outside: vertices with min zeta > 1; voxel IoU on " << voxelResolution
+		  << " voxels along the body height. Cloth: " << drop.resolution << "x" << drop.resolution << " patch ("
+		  << drop.size << " m) dropped from " << drop.drop * 100 << " cm above the head, " << drop.steps
+		  << " steps of 1/120 s, " << drop.substeps << " substeps, " << drop.iterations
+		  << " iterations; collision time = Bullet collision detection + our collider per step (median step of "
+		  << drapeRepeats << " run(s)); contact gap: mean distance of the nodes in contact to the skin "
+		  << "(negative = inside); inside_body: nodes inside the real body mesh. pareto = 1: no other setting of the "
+		  << "same body fits faster with a smaller mean air gap. body_covered_pct: share of the body's interior voxels "
+		  << "inside the union; union_outside_body_pct: share of the union's voxels outside the body (ellipsoids of "
+		  << "surface-patch clusters bulge out as much as they reach in, so finer fits cover less of the interior).";
+	emitTable(ctx, "accuracy_time", "accuracy-time: thresholds and budgets on every bundled body", t, notes.str());
+
+	// Plots (gnuplot reads accuracy_time.csv; column numbers follow the header above).
+	const std::string series = [&] {
+		std::string s;
+		const char* colors[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd"};
+		int i = 0;
+		for (const BodyAsset& b : bundledBodies())
+		{
+			(void)b;
+			s += "c" + std::to_string(i) + "='" + colors[i] + "'\n";
+			++i;
+		}
+		return s;
+	}();
+	auto perBody = [&](const std::string& ycol, const std::string& xcol, bool withBudgets) {
+		std::string cmd = "plot ";
+		int i = 0;
+		for (const BodyAsset& b : bundledBodies())
+		{
+			const std::string sel = "(strcol(1) eq '" + b.name + "' && strcol(2) eq 'threshold' ? ";
+			cmd += std::string(i ? ", \\\n     " : "") + "'accuracy_time.csv' skip 1 using " + xcol + ":" + sel +
+				   ycol + " : NaN) with linespoints lc rgb c" + std::to_string(i) + " pt 7 title '" + b.name +
+				   " (thresholds)'";
+			if (withBudgets)
+				cmd += ", \\\n     'accuracy_time.csv' skip 1 using " + xcol + ":(strcol(1) eq '" + b.name +
+					   "' && strcol(2) eq 'budget' ? " + ycol + " : NaN) with linespoints dt 2 lc rgb c" +
+					   std::to_string(i) + " pt 5 title '" + b.name + " (budgets 16-128)'";
+			++i;
+		}
+		return cmd;
+	};
+	plot(ctx, "accuracy_time_error",
+		 series + "set title 'Fit error vs ellipsoid count (all bundled bodies)'\n"
+				  "set xlabel 'ellipsoids'\nset ylabel 'mean air gap (mm)'\nset logscale x 2\n" +
+			 perBody("$9", "6", true));
+	plot(ctx, "accuracy_time_fit_time",
+		 series + "set title 'Fit time vs ellipsoid count (fitting stage, median)'\n"
+				  "set xlabel 'ellipsoids'\nset ylabel 'fit time (ms)'\nset logscale x 2\nset logscale y\n" +
+			 perBody("$7", "6", true));
+	plot(ctx, "accuracy_time_collision",
+		 series + "set title 'Cloth collision cost vs ellipsoid count (patch drop)'\n"
+				  "set xlabel 'ellipsoids'\nset ylabel 'collision ns / node / step'\nset logscale x 2\n"
+				  "set yrange [0:*]\n" +
+			 perBody("$18", "6", true));
+	{
+		std::string cmd = series +
+						  "set title 'Accuracy vs time: mean air gap vs fit time (Pareto fronts per body)'\n"
+						  "set xlabel 'fit time (ms)'\nset ylabel 'mean air gap (mm)'\nset logscale x\nplot ";
+		int i = 0;
+		for (const BodyAsset& b : bundledBodies())
+		{
+			const std::string c = "c" + std::to_string(i);
+			cmd += std::string(i ? ", \\\n     " : "") + "'accuracy_time.csv' skip 1 using 7:(strcol(1) eq '" +
+				   b.name + "' ? $9 : NaN) with points pt 6 lc rgb " + c + " notitle, \\\n     " +
+				   "'< sort -t, -k7 -g accuracy_time.csv' using 7:(strcol(1) eq '" + b.name +
+				   "' && $25 == 1 ? $9 : NaN) with linespoints pt 7 lc rgb " + c + " title '" + b.name + " front'";
+			++i;
+		}
+		plot(ctx, "accuracy_time_pareto", cmd);
+	}
+	return rc;
+}
+
+const bodyfit_bench::SuiteRegistrar registerAccuracyTime(
+	"accuracy-time",
+	"threshold sweep (9 settings, --quick 5) + budgets 16/32/64/128 on the 4 bodies: count, fit time, errors, "
+	"air gap, IoU, cloth collision cost (fits: median of 3, --quick 1)",
+	&runAccuracyTime);
+
+} // namespace
