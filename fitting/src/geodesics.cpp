@@ -114,8 +114,8 @@ GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& optio
 			const Eigen::Vector3d pa = mesh.V.row(a).transpose(), pb = mesh.V.row(b).transpose();
 			edges.push_back({std::min(a, b), std::max(a, b), (pa - pb).norm(), 1});
 			// A manifold interior edge has exactly one half-edge each way; others get no diagonal.
-			int c = -1;
-			if (options.faceDiagonals && twins == 1 && find(a, b, &c) == 1 && c != d)
+			const int c = halfEdges[size_t(i)].opposite;
+			if (options.faceDiagonals && twins == 1 && c != d)
 			{
 				const double len = unfoldedDiagonal(pa, pb, mesh.V.row(c).transpose(), mesh.V.row(d).transpose());
 				if (len > 0.0)

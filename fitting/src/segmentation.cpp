@@ -111,10 +111,11 @@ std::vector<double> isolineLengths(const TriMesh& mesh, const std::vector<double
 	for (int f = 0; f < mesh.faceCount(); ++f)
 	{
 		std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
+		const double d0 = d[size_t(v[0])], d1 = d[size_t(v[1])], d2 = d[size_t(v[2])];
+		if (std::max({d0, d1, d2}) <= t0 || std::min({d0, d1, d2}) >= t1 || !std::isfinite(d0 + d1 + d2))
+			continue; // most faces: outside the band
 		std::sort(v.begin(), v.end(), [&](int x, int y) { return d[size_t(x)] < d[size_t(y)]; });
 		const double lo = d[size_t(v[0])], mid = d[size_t(v[1])], hi = d[size_t(v[2])];
-		if (!std::isfinite(hi) || hi <= t0 || lo >= t1)
-			continue;
 		const int i0 = std::max(0, int(std::ceil((lo - t0) / step)));
 		const int i1 = std::min(count - 1, int(std::floor((hi - t0) / step)));
 		const Eigen::Vector3d p0 = vertex(mesh, v[0]), p1 = vertex(mesh, v[1]), p2 = vertex(mesh, v[2]);

@@ -95,14 +95,6 @@ std::vector<int> mirrorPartners(const TriMesh& mesh)
 	return partner;
 }
 
-std::vector<Region> mirrored(const std::vector<Region>& labels)
-{
-	std::vector<Region> out(labels.size());
-	for (size_t i = 0; i < labels.size(); ++i)
-		out[i] = mirrorRegion(labels[i]);
-	return out;
-}
-
 } // namespace
 
 TEST_CASE("segmentation: region names round-trip", "[fitting][segmentation]")
@@ -196,7 +188,7 @@ TEST_CASE("segmentation: feature points land on their limbs", "[fitting][segment
 
 TEST_CASE("segmentation: a left-right symmetric body gets mirror-symmetric labels", "[fitting][segmentation]")
 {
-	for (const std::string& name : {"male_young.obj", "female_short.obj", "male_heavy.8750v.obj"})
+	for (const std::string name : {"male_young.obj", "female_short.obj", "male_heavy.8750v.obj"})
 	{
 		INFO(name);
 		const TriMesh& mesh = body(name);
@@ -239,7 +231,7 @@ TEST_CASE("segmentation: a left-right symmetric body gets mirror-symmetric label
 
 TEST_CASE("segmentation: re-indexing the mesh gives the same regions", "[fitting][segmentation]")
 {
-	for (const std::string& name : {"male_young.obj", "posed/female_young.walk.obj", "male_young.4508v.obj"})
+	for (const std::string name : {"male_young.obj", "posed/female_young.walk.obj", "male_young.4508v.obj"})
 	{
 		INFO(name);
 		const TriMesh& mesh = body(name);
@@ -261,10 +253,10 @@ TEST_CASE("segmentation: re-indexing the mesh gives the same regions", "[fitting
 TEST_CASE("segmentation: the same body in other poses keeps its labels", "[fitting][segmentation]")
 {
 	// The posed bodies share the A-pose vertex order (same MakeHuman base mesh, skinned).
-	for (const std::string& subject : {"male_young", "female_young"})
+	for (const std::string subject : {"male_young", "female_young"})
 	{
 		const Segmentation& rest = segmentation(subject + ".obj");
-		for (const std::string& pose : {"tpose", "walk"})
+		for (const std::string pose : {"tpose", "walk"})
 		{
 			const std::string name = "posed/" + subject + "." + pose + ".obj";
 			INFO(name);
@@ -337,7 +329,7 @@ TriMesh armsDown(const TriMesh& mesh, const Segmentation& seg)
 
 TEST_CASE("segmentation: arms down with the hands next to the thighs", "[fitting][segmentation]")
 {
-	for (const std::string& name : {"male_young.obj", "female_young.8650v.obj"})
+	for (const std::string name : {"male_young.obj", "female_young.8650v.obj"})
 	{
 		INFO(name);
 		const TriMesh& mesh = body(name);
