@@ -275,7 +275,7 @@ namespace
 /// Arms rotated from the A-pose down to the sides until the hands are about 2 cm from the thighs: the hard case
 /// for extremity detection (hands near the legs in Euclidean terms, far away along the surface). Vertices near
 /// the shoulder rotate partially (the angle ramps up over the top quarter of the arm) to avoid a torn seam.
-TriMesh armsDown(const TriMesh& mesh, const Segmentation& seg)
+TriMesh armsDown(const TriMesh& mesh, const Segmentation& seg, bool forward = false)
 {
 	TriMesh out = mesh;
 	GeodesicSolver solver(mesh);
@@ -296,11 +296,14 @@ TriMesh armsDown(const TriMesh& mesh, const Segmentation& seg)
 			if (seg.labels[size_t(v)] != upper && seg.labels[size_t(v)] != lower && mesh.V(v, 1) < 1.0)
 				body.push_back(v);
 		// Lower the arm in 1-degree steps (from 30 degrees off vertical) while its hand and forearm stay more than
-		// 2 cm from the body.
+		// 2 cm from the body. `forward`: instead, raise it to horizontal, pointing forward (+z) and 10 degrees out.
 		for (double alphaDeg = 30.0; alphaDeg >= 0.0; alphaDeg -= 1.0)
 		{
 			const double alpha = alphaDeg * std::acos(-1.0) / 180.0;
-			const Eigen::Vector3d target = Eigen::Vector3d(sideSign * std::sin(alpha), -std::cos(alpha), 0.0);
+			const double out10 = 10.0 * std::acos(-1.0) / 180.0;
+			const Eigen::Vector3d target = forward
+											   ? Eigen::Vector3d(sideSign * std::sin(out10), 0.0, std::cos(out10))
+											   : Eigen::Vector3d(sideSign * std::sin(alpha), -std::cos(alpha), 0.0);
 			const Eigen::Vector3d axis = u.cross(target).normalized();
 			const double angle = std::acos(std::clamp(u.dot(target), -1.0, 1.0));
 			TriMesh trial = out;
@@ -320,6 +323,8 @@ TriMesh armsDown(const TriMesh& mesh, const Segmentation& seg)
 			if (gap < 0.02)
 				break;
 			out = trial;
+			if (forward)
+				break;
 		}
 	}
 	return out;
@@ -405,4 +410,25 @@ TEST_CASE("segmentation: non-human meshes fall back cleanly", "[fitting][segment
 		REQUIRE(int(seg.labels.size()) == mesh.vertexCount());
 		CHECK(regionVertexCounts(seg.labels)[size_t(Region::Whole)] == mesh.vertexCount());
 	}
+}
+
+TEST_CASE("segmentation: arms held forward", "[fitting][segmentation]")
+{
+	const TriMesh& mesh = body("male_young.obj");
+	const Segmentation& rest = segmentation("male_young.obj");
+	const TriMesh forward = armsDown(mesh, rest, /*forward=*/true);
+	// The fingertips now point forward at about shoulder height.
+	CHECK(forward.V(rest.features.handLeft, 2) > 0.5);
+	CHECK(forward.V(rest.features.handLeft, 1) > 0.7 * rest.height);
+	const Segmentation seg = segmentBody(forward);
+	INFO(seg.failureReason);
+	REQUIRE(seg.ok);
+	CHECK(seg.features.handLeft == rest.features.handLeft);
+	CHECK(seg.features.handRight == rest.features.handRight);
+	WARN("arms-forward agreement " << agreement(seg.labels, rest.labels));
+	// As for arms down: only the cut at the sheared shoulder may move.
+	CHECK(agreement(seg.labels, rest.labels) >= 0.95);
+	const std::vector<int> pieces = regionComponentCounts(forward, seg.labels);
+	for (int r = 0; r < kBodyRegionCount; ++r)
+		CHECK(pieces[size_t(r)] == 1);
 }
