@@ -18,7 +18,7 @@ echo "== job: ASan + UBSan build of the whole test suite =="
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBODYFIT_SANITIZE=ON -DBODYFIT_BUILD_DEMOS=OFF
 cmake --build build-asan -j"$JOBS"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-	ctest --test-dir build-asan --output-on-failure -j"$JOBS"
+	LSAN_OPTIONS=suppressions="$PWD/fuzz/lsan.supp":print_suppressions=0 ctest --test-dir build-asan --output-on-failure -j"$JOBS"
 
 echo "== job: libFuzzer short run (45 s per target, clang, ASan+UBSan) =="
 tools/fuzz.sh build-fuzz 45

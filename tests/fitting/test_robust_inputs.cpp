@@ -65,6 +65,9 @@ TEST_CASE("robust catalogue: unreadable mesh files are MeshLoadError naming the 
 	CHECK_THAT(meshError("robust_truncated.ply"), Catch::Contains("robust_truncated.ply: "));
 	CHECK_THAT(meshError("robust_truncated.glb"), Catch::Contains("robust_truncated.glb: "));
 	CHECK_THAT(meshError("garbage.bin"), Catch::Contains("garbage.bin: "));
+	// Found by fuzz_mesh_file: an ASCII PLY header with a non-ASCII byte inside "property" (assimp throws, and leaks
+	// its partial scene: suppressed in fuzz/lsan.supp, ours is clean).
+	CHECK_THAT(meshError("robust_fuzz_ply_bad_header.ply"), Catch::Contains("cannot read mesh"));
 }
 
 TEST_CASE("robust catalogue: a truncated ASCII PLY is rejected", "[robust][inputs][mesh]")
