@@ -2,6 +2,22 @@
 /// \file segmentation.h
 /// Semantic segmentation of a standing human body mesh into 15 body regions (paper sec. 2; DESIGN.md sec. 2).
 /// "left" and "right" are the subject's own: the bundled bodies face +z, so the subject's left is +x.
+///
+/// Method (6 Dijkstra runs on the edge graph with face diagonals, see geodesics.h):
+///  1. End points: farthest-point sampling in the geodesic metric from the vertex nearest the area centroid; the
+///     first five picks are the extremities. Feet = the two lowest, head top = the highest other, hands = the rest.
+///  2. Perineum: the highest vertex on the middle part of the shortest toe-to-toe paths. Leg length = geodesic
+///     perineum -> toe tip. Armpit: the corner of the fingertip -> same-side toe geodesic (farthest from the chord
+///     between a point near the elbow and a point on the flank). Arm length = geodesic armpit -> fingertip.
+///  3. Cuts: elbow and knee at the narrowest isoline of the limb's geodesic field (interior local minimum of the
+///     isoline length) in a band around a proportion of the limb length; the neck at the narrowest planar cross-
+///     section perpendicular to the body axis below the head top (a geodesic isoline would cut through the mouth).
+///  4. Regions: head = the piece above the neck plane; arm / leg = geodesic distance to its end point below the
+///     limb length (hands and feet belong to the lower arm / lower leg); the rest is torso, split by the waist and
+///     chest planes across the perineum -> neck axis and the perpendicular bisector plane of the armpits. Stray
+///     islands of a region join the neighbouring region, so every region is one connected piece.
+/// Every decision uses geometry only (ties broken by coordinates, never by vertex index), so re-indexing the mesh
+/// permutes the labels and nothing else.
 
 #include "bodyfit/geodesics.h"
 #include "bodyfit/types.h"
