@@ -201,7 +201,8 @@ int main(int argc, char** argv)
 		if (segment && !segmentation.ok)
 		{
 			const std::string warning =
-				"segmentation failed (" + segmentation.failureReason + "); fitted the whole mesh as one region";
+				"segmentation failed (" + segmentation.failureReason +
+				"); fitted the whole mesh as one region (a body must stand along +y and face +z; see --up)";
 			fit.warnings.insert(fit.warnings.begin(), warning);
 			std::cerr << "bodyfit-fit: warning: " << warning << "\n";
 		}
