@@ -169,6 +169,10 @@ int main(int argc, char** argv)
 	nlohmann::json frameIndex;
 	try
 	{
+		// Output directories are created as needed (e.g. --png out/skirt.png on a fresh checkout).
+		for (const std::string* p : {&args.metrics, &args.png})
+			if (!p->empty() && std::filesystem::path(*p).has_parent_path())
+				std::filesystem::create_directories(std::filesystem::path(*p).parent_path());
 		if (!args.frames.empty())
 		{
 			std::filesystem::create_directories(args.frames);

@@ -533,6 +533,13 @@ Scene parseScene(const nlohmann::json& document, const std::string& path)
 	Scene scene;
 	scene.path = path;
 	ObjectReader top(document, "", path, baseDir);
+	// Unknown top-level keys first: a wrong file (e.g. an ellipsoid set passed as a scene) is then reported by its
+	// foreign keys rather than by the first missing section.
+	const std::vector<std::string> sections = {"name",   "description", "body",    "collider", "garment",
+											   "material", "solver",    "effects", "render",   "output"};
+	for (auto it = document.begin(); it != document.end(); ++it)
+		if (std::find(sections.begin(), sections.end(), it.key()) == sections.end())
+			top.fail(it.key(), "unknown key (allowed here: " + ObjectReader::join(sections) + ")");
 	scene.name = top.string("name", std::filesystem::path(path).stem().string());
 	top.string("description", "");
 	scene.body = parseBody(top.child("body"));
