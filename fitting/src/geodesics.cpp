@@ -42,7 +42,7 @@ double unfoldedDiagonal(const Eigen::Vector3d& a, const Eigen::Vector3d& b, cons
 	const double x = cx + t * (dx - cx);
 	if (!(x > 0.0 && x < lab))
 		return -1.0;
-	return std::hypot(cx - dx, cy - dy);
+	return std::sqrt((cx - dx) * (cx - dx) + (cy - dy) * (cy - dy));
 }
 
 } // namespace
