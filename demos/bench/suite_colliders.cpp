@@ -61,6 +61,7 @@ RunStats runCapped(const bodyfit::drape::Scene& scene, const bodyfit::drape::Bod
 	for (double g : gaps)
 		sum += g;
 	r.gapMm = gaps.empty() ? 0.0 : 1e3 * sum / double(gaps.size());
+	releaseSparseSdf(sim);
 	return r;
 }
 
@@ -68,7 +69,7 @@ int runColliders(const bodyfit_bench::Context& ctx)
 {
 	const char* tag = "colliders";
 	const int steps = ctx.quick ? 15 : 40;
-	const double capS = ctx.quick ? 15.0 : 30.0;
+	const double capS = ctx.quick ? 10.0 : 20.0;
 	const std::string sceneDir = std::string(BODYFIT_ASSET_DIR) + "/../scenes";
 	std::vector<std::string> scenes;
 	for (const auto& entry : std::filesystem::directory_iterator(sceneDir))
@@ -166,7 +167,7 @@ int runColliders(const bodyfit_bench::Context& ctx)
 const bodyfit_bench::SuiteRegistrar registerColliders(
 	"colliders",
 	"every bundled scene x every collider kind: step and collision time, nodes inside the body, contact gap (40 "
-	"steps or 30 s per run, --quick 15 steps / 15 s)",
+	"steps or 20 s per run, --quick 15 steps / 10 s)",
 	&runColliders);
 
 } // namespace
