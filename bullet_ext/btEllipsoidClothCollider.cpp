@@ -15,6 +15,10 @@ point nearest the start position wins (which removes the paper's Figure 6 cases 
 
 #include <new>
 
+#if defined(__unix__) || defined(__APPLE__)
+#include <time.h>
+#endif
+
 namespace
 {
 
@@ -28,6 +32,17 @@ const int kMaxNudges = 4;
 
 /// Two entries along one path closer than this (metres) are a tie (the path meets a crease of the union).
 const btScalar kTieDistance = btScalar(1e-6);
+
+/// CPU time of the calling thread in seconds (0 where the platform has no per-thread clock).
+double threadCpuSeconds()
+{
+#if defined(CLOCK_THREAD_CPUTIME_ID)
+	timespec ts;
+	if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts) == 0)
+		return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+#endif
+	return 0.0;
+}
 
 /// True if no coordinate is NaN or infinite (inf - inf and NaN - NaN are NaN).
 inline bool isFinite(const btVector3& a, const btVector3& b)
@@ -69,6 +84,7 @@ void btEllipsoidClothStats::reset()
 	m_nodesPushedOut = 0;
 	m_nodesRepaired = 0;
 	m_collisionSeconds = 0.0;
+	m_collisionCpuSeconds = 0.0;
 	m_minZeta = SIMD_INFINITY;
 	m_nonFiniteNodes = 0;
 }
@@ -81,6 +97,7 @@ void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
 	m_nodesPushedOut += other.m_nodesPushedOut;
 	m_nodesRepaired += other.m_nodesRepaired;
 	m_collisionSeconds += other.m_collisionSeconds;
+	m_collisionCpuSeconds += other.m_collisionCpuSeconds;
 	m_minZeta = btMin(m_minZeta, other.m_minZeta);
 	m_nonFiniteNodes += other.m_nonFiniteNodes;
 }
@@ -176,6 +193,7 @@ void btEllipsoidClothCollider::beginSubstep(btScalar dt)
 	m_lastStats.reset();
 	m_lastStats.m_substeps = 1;
 	btClock clock;
+	const double cpu0 = threadCpuSeconds();
 	m_substepDt = dt;
 	const btTransform& now = m_body->getWorldTransform();
 	if (!m_havePose)
@@ -212,6 +230,7 @@ void btEllipsoidClothCollider::beginSubstep(btScalar dt)
 	}
 	m_current.update(m_compound, m_currentPose);
 	m_lastStats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
+	m_lastStats.m_collisionCpuSeconds += threadCpuSeconds() - cpu0;
 }
 
 void btEllipsoidClothCollider::endSubstep()
@@ -477,6 +496,7 @@ btScalar btEllipsoidClothCollider::pushOut(btSoftBody::Node& node, const btVecto
 void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const btVector3* startPositions)
 {
 	btClock clock;
+	const double cpu0 = threadCpuSeconds();
 	ensureResponseDisabled(softBody);
 	const btEllipsoidWorldCache& cache = m_current;
 	const int ne = cache.size();
@@ -489,16 +509,17 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 	const btVector3 unionMin = cache.getAabbMin();
 	const btVector3 unionMax = cache.getAabbMax();
 	const btEllipsoidWorldCache::Entry* entries = &cache.m_entries[0];
+	const btVector3* boxes = &cache.m_boxes[0];
 	const int* cellStart = &cache.m_cellStart[0];
 	const int* cellItems = cache.m_cellItems.size() ? &cache.m_cellItems[0] : 0;
 	const int dimX = cache.m_dims[0], dimXY = cache.m_dims[0] * cache.m_dims[1];
-	unsigned* stamp = &cache.m_stamp[0];
 	m_candidates.resize(ne);
 	int* cand = &m_candidates[0];
 	m_candidateT.resize(ne);
 	btScalar* tvals = &m_candidateT[0];
 	const bool moving = m_moving;
 	const btTransform delta = m_delta;
+	const btTransform toLocal = cache.getInverseTransform();
 
 	btScalar minZeta = stats.m_minZeta;
 	const int numNodes = softBody->m_nodes.size();
@@ -527,24 +548,20 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 		if (!boxesOverlap(boxMin, boxMax, unionMin, unionMax))
 			continue;
 
-		// Broadphase: grid cells under the path box, each ellipsoid once (stamps), box overlap test.
+		// Broadphase: the path in the body frame (its box grown by the skin), the grid cells under it, each
+		// ellipsoid once (stamps), then the world box test.
 		int nc = 0;
 		{
-			const int x0 = cache.cellCoord(boxMin.x(), 0), x1 = cache.cellCoord(boxMax.x(), 0);
-			const int y0 = cache.cellCoord(boxMin.y(), 1), y1 = cache.cellCoord(boxMax.y(), 1);
-			const int z0 = cache.cellCoord(boxMin.z(), 2), z1 = cache.cellCoord(boxMax.z(), 2);
+			const btVector3 lq = toLocal * q, lx = toLocal * x;
+			btVector3 lMin = lx, lMax = lx;
+			lMin.setMin(lq);
+			lMax.setMax(lq);
+			lMin -= skinBox;
+			lMax += skinBox;
+			const int x0 = cache.cellCoord(lMin.x(), 0), x1 = cache.cellCoord(lMax.x(), 0);
+			const int y0 = cache.cellCoord(lMin.y(), 1), y1 = cache.cellCoord(lMax.y(), 1);
+			const int z0 = cache.cellCoord(lMin.z(), 2), z1 = cache.cellCoord(lMax.z(), 2);
 			const bool single = x0 == x1 && y0 == y1 && z0 == z1;
-			unsigned tag = 0;
-			if (!single)
-			{
-				if (++cache.m_stampCounter == 0)
-				{
-					for (int k = 0; k < ne; ++k)
-						stamp[k] = 0;
-					cache.m_stampCounter = 1;
-				}
-				tag = cache.m_stampCounter;
-			}
 			for (int cz = z0; cz <= z1; ++cz)
 				for (int cy = y0; cy <= y1; ++cy)
 					for (int cx = x0; cx <= x1; ++cx)
@@ -553,15 +570,19 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 						for (int j = cellStart[c]; j < cellStart[c + 1]; ++j)
 						{
 							const int k = cellItems[j];
+							if (!boxesOverlap(boxMin, boxMax, boxes[2 * k], boxes[2 * k + 1]))
+								continue;
 							if (!single)
 							{
-								if (stamp[k] == tag)
+								// A box spanning several cells meets an ellipsoid in each: keep the first (the
+								// candidate list is a handful long, a linear scan beats a stamp array here).
+								int m = 0;
+								while (m < nc && cand[m] != k)
+									++m;
+								if (m < nc)
 									continue;
-								stamp[k] = tag;
 							}
-							const btEllipsoidWorldCache::Entry& e = entries[k];
-							if (boxesOverlap(boxMin, boxMax, e.m_aabbMin, e.m_aabbMax))
-								cand[nc++] = k;
+							cand[nc++] = k;
 						}
 					}
 		}
@@ -711,6 +732,7 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 	}
 	stats.m_minZeta = minZeta;
 	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
+	stats.m_collisionCpuSeconds += threadCpuSeconds() - cpu0;
 }
 
 btEllipsoidClothCollider* btEllipsoidClothCollider::install(btSoftRigidDynamicsWorld* world, btCollisionObject* body,

@@ -27,6 +27,7 @@ struct btEllipsoidClothStats
 	int m_nodesPushedOut;    ///< nodes that started the substep inside (or ended inside after correction): pushed out
 	int m_nodesRepaired;     ///< nodes the final guarantee check had to move again (should stay 0)
 	double m_collisionSeconds; ///< wall time spent in the collider (world-cache update + node loop)
+	double m_collisionCpuSeconds; ///< the same as thread CPU time (robust on a busy machine; 0 where unsupported)
 	btScalar m_minZeta;      ///< smallest zeta over processed nodes after the response (>= 1 when the guarantee holds)
 	int m_nonFiniteNodes;    ///< nodes found with NaN/Inf coordinates (left untouched, not counted elsewhere)
 

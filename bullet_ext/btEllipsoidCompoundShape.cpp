@@ -238,6 +238,7 @@ btEllipsoidWorldCache::btEllipsoidWorldCache()
 	: m_shape(0), m_revision(-1), m_invCell(btScalar(1)), m_stampCounter(0)
 {
 	m_transform.setIdentity();
+	m_inverse.setIdentity();
 	m_aabbMin.setValue(0, 0, 0);
 	m_aabbMax.setValue(0, 0, 0);
 	m_gridOrigin.setValue(0, 0, 0);
@@ -246,14 +247,16 @@ btEllipsoidWorldCache::btEllipsoidWorldCache()
 
 bool btEllipsoidWorldCache::update(const btEllipsoidCompoundShape* shape, const btTransform& bodyTransform)
 {
-	if (shape == m_shape && shape && shape->getAnalyticRevision() == m_revision &&
-		transformsEqual(bodyTransform, m_transform))
+	const bool sameShape = shape == m_shape && shape && shape->getAnalyticRevision() == m_revision;
+	if (sameShape && transformsEqual(bodyTransform, m_transform))
 		return false;
 	m_shape = shape;
 	m_transform = bodyTransform;
+	m_inverse = bodyTransform.inverse();
 	const int n = shape ? shape->getNumEllipsoids() : 0;
 	m_revision = shape ? shape->getAnalyticRevision() : -1;
 	m_entries.resize(n);
+	m_boxes.resize(2 * n);
 	const btMatrix3x3& bb = bodyTransform.getBasis();
 	for (int i = 0; i < n; ++i)
 	{
@@ -263,14 +266,16 @@ bool btEllipsoidWorldCache::update(const btEllipsoidCompoundShape* shape, const 
 		const btVector3 invA(btScalar(1) / e.m_semiAxes.x(), btScalar(1) / e.m_semiAxes.y(),
 							 btScalar(1) / e.m_semiAxes.z());
 		w.m_center = bodyTransform * e.m_center;
-		w.m_unwhiten = r.scaled(e.m_semiAxes);                                   // R diag(a)
-		w.m_whiten = r.transpose();                                             // then rows scaled by 1/a
+		w.m_unwhiten = r.scaled(e.m_semiAxes); // R diag(a)
+		w.m_whiten = r.transpose();           // then rows scaled by 1/a
 		w.m_whiten[0] *= invA.x();
 		w.m_whiten[1] *= invA.y();
 		w.m_whiten[2] *= invA.z();
 		btVector3 extent(w.m_unwhiten[0].length(), w.m_unwhiten[1].length(), w.m_unwhiten[2].length());
 		w.m_aabbMin = w.m_center - extent;
 		w.m_aabbMax = w.m_center + extent;
+		m_boxes[2 * i] = w.m_aabbMin;
+		m_boxes[2 * i + 1] = w.m_aabbMax;
 		if (i == 0)
 		{
 			m_aabbMin = w.m_aabbMin;
@@ -287,13 +292,14 @@ bool btEllipsoidWorldCache::update(const btEllipsoidCompoundShape* shape, const 
 		m_aabbMin.setValue(0, 0, 0);
 		m_aabbMax.setValue(0, 0, 0);
 	}
-	buildGrid();
+	if (!sameShape)
+		buildGrid(); // the grid lives in the body frame: a moving body does not rebuild it
 	return true;
 }
 
 void btEllipsoidWorldCache::buildGrid()
 {
-	const int n = m_entries.size();
+	const int n = m_shape ? m_shape->getNumEllipsoids() : 0;
 	m_cellStart.resize(0);
 	m_cellItems.resize(0);
 	m_stamp.resize(n);
@@ -305,18 +311,26 @@ void btEllipsoidWorldCache::buildGrid()
 		m_dims[0] = m_dims[1] = m_dims[2] = 0;
 		return;
 	}
-	// About 32 cells along the longest side of the union box: a few ellipsoids per cell for a fitted body
-	// (limbs are ~10 cm wide, a 1.8 m body gives 5.6 cm cells), small enough to rebuild every substep.
-	const btVector3 size = m_aabbMax - m_aabbMin;
+	btVector3 lo = m_shape->getEllipsoid(0).m_aabbMin, hi = m_shape->getEllipsoid(0).m_aabbMax;
+	for (int i = 1; i < n; ++i)
+	{
+		lo.setMin(m_shape->getEllipsoid(i).m_aabbMin);
+		hi.setMax(m_shape->getEllipsoid(i).m_aabbMax);
+	}
+	// About 32 cells along the longest side of the compound's box (5.6 cm for a 1.8 m body; the arrays stay in L1):
+	// a node on the body then meets one to three ellipsoids. Built once per compound revision, in its frame.
+	const btVector3 size = hi - lo;
 	const btScalar longest = btMax(size[size.maxAxis()], btScalar(1e-3));
-	const btScalar cell = longest / btScalar(32);
+	const btScalar cell = longest / btScalar(kGridCellsLongestSide);
 	m_invCell = btScalar(1) / cell;
-	m_gridOrigin = m_aabbMin;
+	m_gridOrigin = lo;
 	for (int k = 0; k < 3; ++k)
-		m_dims[k] = btMax(1, btMin(64, int(size[k] * m_invCell) + 1));
+		m_dims[k] = btMax(1, btMin(int(kGridCellsLongestSide), int(size[k] * m_invCell) + 1));
 	const int cells = m_dims[0] * m_dims[1] * m_dims[2];
+	// A cell lists an ellipsoid if the cell's circumscribed sphere (radius rc) meets it. Conservative test: the
+	// cell centre is inside the ellipsoid with every semi-axis grown by rc, which contains E + ball(rc).
+	const btScalar rc = cell * btSqrt(btScalar(3)) * btScalar(0.5);
 
-	// Two passes over the entries' cell ranges: count per cell, then fill (CSR layout).
 	m_cellStart.resize(cells + 1);
 	for (int c = 0; c <= cells; ++c)
 		m_cellStart[c] = 0;
@@ -334,17 +348,26 @@ void btEllipsoidWorldCache::buildGrid()
 		}
 		for (int i = 0; i < n; ++i)
 		{
-			const Entry& w = m_entries[i];
-			int lo[3], hi[3];
+			const btEllipsoidLocalData& e = m_shape->getEllipsoid(i);
+			const btVector3 grown = e.m_semiAxes + btVector3(rc, rc, rc);
+			btMatrix3x3 whiten = e.m_basis.transpose();
+			for (int k = 0; k < 3; ++k)
+				whiten[k] *= btScalar(1) / grown[k];
+			int lo3[3], hi3[3];
 			for (int k = 0; k < 3; ++k)
 			{
-				lo[k] = cellCoord(w.m_aabbMin[k], k);
-				hi[k] = cellCoord(w.m_aabbMax[k], k);
+				lo3[k] = cellCoord(e.m_aabbMin[k], k);
+				hi3[k] = cellCoord(e.m_aabbMax[k], k);
 			}
-			for (int z = lo[2]; z <= hi[2]; ++z)
-				for (int y = lo[1]; y <= hi[1]; ++y)
-					for (int x = lo[0]; x <= hi[0]; ++x)
+			for (int z = lo3[2]; z <= hi3[2]; ++z)
+				for (int y = lo3[1]; y <= hi3[1]; ++y)
+					for (int x = lo3[0]; x <= hi3[0]; ++x)
 					{
+						const btVector3 centre = m_gridOrigin + btVector3(btScalar(x) + btScalar(0.5),
+																		  btScalar(y) + btScalar(0.5),
+																		  btScalar(z) + btScalar(0.5)) * cell;
+						if ((whiten * (centre - e.m_center)).length2() > btScalar(1))
+							continue;
 						const int c = (z * m_dims[1] + y) * m_dims[0] + x;
 						if (pass == 0)
 							++m_cellStart[c + 1];
@@ -370,11 +393,21 @@ void btEllipsoidWorldCache::query(const btVector3& aabbMin, const btVector3& aab
 	for (int k = 0; k < 3; ++k)
 		if (aabbMin[k] > m_aabbMax[k] || aabbMax[k] < m_aabbMin[k])
 			return;
+	// World box -> body-frame box (the 8 transformed corners), then the grid cells under it.
+	btVector3 localMin(SIMD_INFINITY, SIMD_INFINITY, SIMD_INFINITY), localMax = -localMin;
+	for (int corner = 0; corner < 8; ++corner)
+	{
+		const btVector3 p((corner & 1) ? aabbMax.x() : aabbMin.x(), (corner & 2) ? aabbMax.y() : aabbMin.y(),
+						  (corner & 4) ? aabbMax.z() : aabbMin.z());
+		const btVector3 l = m_inverse * p;
+		localMin.setMin(l);
+		localMax.setMax(l);
+	}
 	int lo[3], hi[3];
 	for (int k = 0; k < 3; ++k)
 	{
-		lo[k] = cellCoord(aabbMin[k], k);
-		hi[k] = cellCoord(aabbMax[k], k);
+		lo[k] = cellCoord(localMin[k], k);
+		hi[k] = cellCoord(localMax[k], k);
 	}
 	if (++m_stampCounter == 0)
 	{

@@ -103,9 +103,10 @@ public:
 	virtual const char* getName() const { return "EllipsoidCompound"; }
 };
 
-/// World-space copy of a compound's ellipsoids for one body transform, plus a uniform grid over their
-/// world AABBs. The cloth collider keeps two of these (previous and current pose). update() is cheap when
-/// nothing changed (compares the transform and the compound's analytic revision).
+/// World-space copy of a compound's ellipsoids for one body transform, plus the broadphase: a uniform grid in the
+/// body frame whose cells list the ellipsoids that (conservatively) meet them, so a moving body only re-places the
+/// entries, not the grid. update() is cheap when nothing changed (compares the transform and the compound's
+/// analytic revision).
 class btEllipsoidWorldCache
 {
 public:
@@ -151,18 +152,27 @@ public:
 	/// Smallest zeta over all entries (uses the grid); SIMD_INFINITY when far from every ellipsoid.
 	btScalar minZeta(const btVector3& worldPoint, int* which = 0) const;
 
-	/// Grid broadphase: indices of entries whose box overlaps [aabbMin, aabbMax], each at most once.
+	/// World -> body frame (the grid's frame).
+	const btTransform& getInverseTransform() const { return m_inverse; }
+
+	/// Grid broadphase: indices of entries whose world box overlaps the world box [aabbMin, aabbMax], each once.
 	void query(const btVector3& aabbMin, const btVector3& aabbMax, btAlignedObjectArray<int>& out) const;
 
 private:
 	btAlignedObjectArray<Entry> m_entries;
+	btAlignedObjectArray<btVector3> m_boxes; ///< entry i's world box: [2i] min, [2i+1] max (compact, for the broadphase)
 	btTransform m_transform;
+	btTransform m_inverse; ///< world -> body frame
 	const btEllipsoidCompoundShape* m_shape;
 	int m_revision;
 	btVector3 m_aabbMin;
 	btVector3 m_aabbMax;
 
-	// uniform grid in world space, CSR lists
+	// uniform grid in the body (compound) frame, CSR lists; rebuilt only when the compound changes
+	enum
+	{
+		kGridCellsLongestSide = 32
+	};
 	btVector3 m_gridOrigin;
 	btScalar m_invCell;
 	int m_dims[3];
