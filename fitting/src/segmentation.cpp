@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <tuple>
 
 namespace bodyfit
 {
@@ -384,8 +385,8 @@ std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options,
 	// the subject's left is +x.
 	std::array<int, 5> order = {0, 1, 2, 3, 4};
 	std::sort(order.begin(), order.end(), [&](int a, int b) {
-		const double ya = mesh.V(ends[size_t(a)], 1), yb = mesh.V(ends[size_t(b)], 1);
-		return ya != yb ? ya < yb : ends[size_t(a)] < ends[size_t(b)];
+		const Eigen::RowVector3d pa = mesh.V.row(ends[size_t(a)]), pb = mesh.V.row(ends[size_t(b)]);
+		return std::make_tuple(pa.y(), pa.x(), pa.z()) < std::make_tuple(pb.y(), pb.x(), pb.z());
 	});
 	auto byX = [&](int a, int b, int* left, int* right) {
 		const bool aLeft = mesh.V(ends[size_t(a)], 0) > mesh.V(ends[size_t(b)], 0);

@@ -16,8 +16,9 @@
 ///     limb length (hands and feet belong to the lower arm / lower leg); the rest is torso, split by the waist and
 ///     chest planes across the perineum -> neck axis and the perpendicular bisector plane of the armpits. Stray
 ///     islands of a region join the neighbouring region, so every region is one connected piece.
-/// Every decision uses geometry only (ties broken by coordinates, never by vertex index), so re-indexing the mesh
-/// permutes the labels and nothing else.
+/// Ties in the decisions that shape the regions (end-point classification, perineum) are broken by coordinates,
+/// not by vertex index; only exact ties in Dijkstra predecessors and in the farthest-point picks follow the vertex
+/// order. Shuffling the vertex order of the bundled bodies changes no label (tests/fitting/test_segmentation.cpp).
 
 #include "bodyfit/geodesics.h"
 #include "bodyfit/types.h"
@@ -122,7 +123,7 @@ struct SegmentationOptions
 /// Never throws for a mesh that passes requireUsable: when the mesh does not look like a standing human (sphere,
 /// cube, torso only, animal, arms above the head, ...) it returns ok = false, a one-line failureReason and every
 /// label Region::Whole. Vertices outside the largest connected component take the label of the nearest vertex of it.
-/// Deterministic: same mesh -> same labels, and re-indexing the vertices permutes the labels accordingly.
+/// Deterministic: same mesh -> same labels; re-indexing the vertices permutes the labels (see above).
 Segmentation segmentBody(const TriMesh& mesh, const SegmentationOptions& options = {});
 
 /// Region::Whole for every vertex (the generic path), ok = false with the given reason.
