@@ -360,8 +360,8 @@ BODYFIT_BENCH_SUITE(paper_table2, "paper Table 2: segmentation + fitting time at
 			std::cerr << "paper_table2: " << row.file << ": " << seg.failureReason << "\n";
 			return 1;
 		}
-		// Thresholds: the default pair (0.6% H torso, 0.4% H limbs) scaled by one factor, found by bisection on
-		// its logarithm so that the ellipsoid count is as close as possible to the paper's.
+		// Thresholds: the default pair of BodyFitOptions (mu_torso, mu_limbs) scaled by one factor, found by
+		// bisection on its logarithm so that the ellipsoid count is as close as possible to the paper's.
 		BodyFitOptions options;
 		options.trueDistance = false;
 		options.maxEllipsoids = 1000;
@@ -409,7 +409,7 @@ BODYFIT_BENCH_SUITE(paper_table2, "paper Table 2: segmentation + fitting time at
 	}
 	std::cout << "Median of " << ctx.repeats << " runs, single thread (wall clock; CPU = thread CPU time, "
 			  << "insensitive to other processes). Thresholds relative to the body height H "
-			  << "(mu_limbs = 2/3 mu_torso), chosen by bisection to hit the paper's ellipsoid count. 'vertex gap' = mean "
+			  << "(the default mu_torso : mu_limbs ratio, scaled by one factor), chosen by bisection to hit the paper's ellipsoid count. 'vertex gap' = mean "
 			  << "true distance of each vertex to its own ellipsoid; 'air gap' = distance from the union's surface "
 			  << "(about one sample per cm^2) to the skin.\n\n";
 	return emit(ctx, "paper_table2", table);
