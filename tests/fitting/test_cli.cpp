@@ -5,6 +5,8 @@
 #include "support_paths.h"
 
 #include <catch2/catch.hpp>
+
+#include <unistd.h>
 #include <nlohmann/json.hpp>
 
 #include <sys/wait.h>
@@ -27,7 +29,8 @@ struct Run
 
 fs::path scratch()
 {
-	const fs::path dir = fs::temp_directory_path() / "bodyfit_test_cli";
+	// One directory per process: ctest runs the test cases of this file in parallel processes.
+	const fs::path dir = fs::temp_directory_path() / ("bodyfit_test_cli_" + std::to_string(::getpid()));
 	fs::create_directories(dir);
 	return dir;
 }

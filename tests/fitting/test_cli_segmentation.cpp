@@ -10,6 +10,8 @@
 
 #include <catch2/catch.hpp>
 
+#include <unistd.h>
+
 #include <sys/wait.h>
 
 #include <cstdlib>
@@ -31,7 +33,8 @@ struct Run
 
 fs::path scratch()
 {
-	const fs::path dir = fs::temp_directory_path() / "bodyfit_test_cli_segmentation";
+	// One directory per process: ctest runs the test cases of this file in parallel processes.
+	const fs::path dir = fs::temp_directory_path() / ("bodyfit_test_cli_segmentation_" + std::to_string(::getpid()));
 	fs::create_directories(dir);
 	return dir;
 }
