@@ -59,7 +59,7 @@ struct btEllipsoidClothStats
 ///
 /// Supported worlds: btSoftRigidDynamicsWorld (and subclasses) built with btEllipsoidClothSoftBodySolver.
 /// btDeformableMultiBodyDynamicsWorld is not supported: it uses btDeformableBodySolver, where x and q swap
-/// meaning and the update happens in applyTransforms; the collider cannot be installed there (install() fails).
+/// meaning and the update happens in applyTransforms; install() takes a btSoftRigidDynamicsWorld, which it is not.
 class btEllipsoidClothCollider
 {
 public:
