@@ -1,6 +1,6 @@
 #include "simulation.h"
 
-#include "mesh_distance.h"
+#include "bodyfit/fit_quality.h"
 
 #include "bodyfit/body_fitter.h"
 #include "bodyfit/ellipsoid_io.h"
@@ -158,7 +158,7 @@ struct DrapeSimulation::Impl
 
 	std::optional<KeyframePath> path;
 	std::unique_ptr<MeshInsideTest> insideTest;
-	mutable std::unique_ptr<MeshDistance> distance;
+	mutable std::unique_ptr<MeshDistanceGrid> distance;
 };
 
 DrapeSimulation::DrapeSimulation(const Scene& scene, const BodyData& body)
@@ -514,7 +514,7 @@ std::vector<int> DrapeSimulation::contactNodes() const
 std::vector<double> DrapeSimulation::skinDistances(const std::vector<int>& nodes) const
 {
 	if (!impl_->distance)
-		impl_->distance = std::make_unique<MeshDistance>(body_.mesh);
+		impl_->distance = std::make_unique<MeshDistanceGrid>(body_.mesh);
 	const Eigen::Isometry3d toBody = bodyPose().inverse();
 	std::vector<double> d;
 	d.reserve(nodes.size());
