@@ -47,6 +47,7 @@ if [ -x "$FIT" ]; then
 	expect 2 "robust_truncated.ply" -- "$FIT" "$DATA/robust_truncated.ply" -o "$TMP/o.json"
 	expect 2 "robust_truncated_ascii.ply" -- "$FIT" "$DATA/robust_truncated_ascii.ply" -o "$TMP/o.json"
 	expect 2 "robust_truncated.glb" -- "$FIT" "$DATA/robust_truncated.glb" -o "$TMP/o.json"
+	expect 2 "malformed PLY header" -- timeout 60 "$FIT" "$DATA/robust_fuzz_ply_hang.ply" -o "$TMP/o.json"
 	expect 2 "garbage.bin" -- "$FIT" "$DATA/garbage.bin" -o "$TMP/o.json"
 	expect 2 "non-finite coordinate" -- "$FIT" "$DATA/nan_vertex.obj" -o "$TMP/o.json"
 	expect 2 "non-finite coordinate" -- "$FIT" "$DATA/robust_inf_vertex.obj" -o "$TMP/o.json"
