@@ -70,6 +70,8 @@ TEST_CASE("robust catalogue: unreadable mesh files are MeshLoadError naming the 
 	CHECK_THAT(meshError("robust_fuzz_ply_bad_header.ply"), Catch::Contains("malformed PLY header, line 6"));
 	// Found by fuzz_mesh_file: a garbled PLY header without end_header made assimp loop forever (a hang, not a crash).
 	CHECK_THAT(meshError("robust_fuzz_ply_hang.ply"), Catch::Contains("malformed PLY header, line 5"));
+	// Found by fuzz_mesh_file in the clean-clone CI run: magic "ply/" (assimp still reads it as PLY, then hangs).
+	CHECK_THAT(meshError("robust_fuzz_ply_magic_hang.ply"), Catch::Contains("malformed PLY header, line 1"));
 }
 
 TEST_CASE("robust catalogue: a truncated ASCII PLY is rejected", "[robust][inputs][mesh]")
