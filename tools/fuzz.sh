@@ -52,7 +52,7 @@ for t in "${TARGETS[@]}"; do
 	echo "== $t: ${SECONDS_PER_TARGET}s =="
 	set +e
 	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-		LSAN_OPTIONS=suppressions="$PWD/fuzz/lsan.supp":print_suppressions=0 "$exe" "$BUILD/fuzz-corpus/$t" -max_total_time="$SECONDS_PER_TARGET" -timeout=20 -rss_limit_mb=2048 \
+		LSAN_OPTIONS=suppressions="$PWD/fuzz/lsan.supp":print_suppressions=0 "$exe" "$BUILD/fuzz-corpus/$t" -max_total_time="$SECONDS_PER_TARGET" -seed="${FUZZ_SEED:-1}" -timeout=20 -rss_limit_mb=2048 \
 		-max_len=65536 -artifact_prefix="$art" -print_final_stats=1 >"$log" 2>&1
 	rc=$?
 	set -e
