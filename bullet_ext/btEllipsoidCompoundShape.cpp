@@ -327,8 +327,11 @@ void btEllipsoidWorldCache::buildGrid()
 	for (int k = 0; k < 3; ++k)
 		m_dims[k] = btMax(1, btMin(int(kGridCellsLongestSide), int(size[k] * m_invCell) + 1));
 	const int cells = m_dims[0] * m_dims[1] * m_dims[2];
-	// A cell lists an ellipsoid if the cell's circumscribed sphere (radius rc) meets it. Conservative test: the
-	// cell centre is inside the ellipsoid with every semi-axis grown by rc, which contains E + ball(rc).
+	// A cell lists an ellipsoid if the cell's circumscribed sphere (radius rc) meets it, i.e. if the cell centre is
+	// in E + ball(rc). Conservative test in the norm |x|_G of the ellipsoid G with semi-axes a + rc: for x = e + d,
+	// e in E, |d| <= rc, the triangle inequality gives |x|_G <= max_k a_k / (a_k + rc) + rc / (min_k a_k + rc).
+	// (G alone does not contain E + ball(rc) for thin ellipsoids: the rim of a 1000:1 disc displaced along its normal
+	// leaves G, which lost candidates in the collider's property test.)
 	const btScalar rc = cell * btSqrt(btScalar(3)) * btScalar(0.5);
 
 	m_cellStart.resize(cells + 1);
@@ -353,6 +356,10 @@ void btEllipsoidWorldCache::buildGrid()
 			btMatrix3x3 whiten = e.m_basis.transpose();
 			for (int k = 0; k < 3; ++k)
 				whiten[k] *= btScalar(1) / grown[k];
+			const btScalar alpha = btMax(btMax(e.m_semiAxes.x() / grown.x(), e.m_semiAxes.y() / grown.y()),
+										 e.m_semiAxes.z() / grown.z());
+			const btScalar beta = rc / (e.m_semiAxes[e.m_semiAxes.minAxis()] + rc);
+			const btScalar limit2 = (alpha + beta) * (alpha + beta) * btScalar(1.0001); // + rounding slack
 			int lo3[3], hi3[3];
 			for (int k = 0; k < 3; ++k)
 			{
@@ -366,7 +373,7 @@ void btEllipsoidWorldCache::buildGrid()
 						const btVector3 centre = m_gridOrigin + btVector3(btScalar(x) + btScalar(0.5),
 																		  btScalar(y) + btScalar(0.5),
 																		  btScalar(z) + btScalar(0.5)) * cell;
-						if ((whiten * (centre - e.m_center)).length2() > btScalar(1))
+						if ((whiten * (centre - e.m_center)).length2() > limit2)
 							continue;
 						const int c = (z * m_dims[1] + y) * m_dims[0] + x;
 						if (pass == 0)
