@@ -31,6 +31,8 @@ Fits ellipsoids to a body mesh (any format assimp reads) and writes them as JSON
                          feature point (black: head top, hands, feet; white: neck, elbows, knees;
                          magenta: perineum, armpits)
   --no-segmentation      fit the whole mesh as one region (generic path)
+  --no-triangle-cover    skip the triangle cover: the union then encloses every vertex but not every
+                         triangle across an ellipsoid boundary (skin slivers stick out between ellipsoids)
   -h, --help             this text
 
 E_j is the paper's fitting error: the mean radial distance of an ellipsoid's vertices to its surface.
@@ -75,6 +77,11 @@ void printSummary(const bodyfit::LoadedMesh& loaded, const bodyfit::BodyFit& fit
 	std::cout << "  regions   " << regions << "\n";
 	std::cout << "  fit       " << fit.ellipsoids.size() << " ellipsoids, refinement " << bodyfit::toString(fit.status)
 			  << " (" << fit.splitsAccepted << " splits accepted, " << fit.splitsRejected << " rejected)\n";
+	if (fit.timingMs("fitting.cover") > 0.0)
+		std::cout << "  cover     every boundary triangle inside one ellipsoid: " << fit.coverExtraPoints
+				  << " vertices enclosed by a neighbour's ellipsoid, " << fit.coverRounds << " refit round(s)\n";
+	else
+		std::cout << "  cover     off (--no-triangle-cover)\n";
 	std::cout << "  threshold mu_torso " << mm(fit.params.muTorso * scale) << ", mu_limbs "
 			  << mm(fit.params.muLimbs * scale)
 			  << (fit.params.relativeToHeight ? " (relative to height)" : " (absolute)") << "\n";
@@ -87,7 +94,7 @@ void printSummary(const bodyfit::LoadedMesh& loaded, const bodyfit::BodyFit& fit
 		std::cout << ", segmentation " << ms(fit.timingMs("segmentation"));
 	std::cout << ", fitting " << ms(fit.timingMs("fitting")) << " (k-means " << ms(fit.timingMs("fitting.kmeans"))
 			  << ", mvee " << ms(fit.timingMs("fitting.mvee")) << ", error " << ms(fit.timingMs("fitting.error"))
-			  << "), report " << ms(fit.timingMs("report")) << "\n";
+			  << ", cover " << ms(fit.timingMs("fitting.cover")) << "), report " << ms(fit.timingMs("report")) << "\n";
 	std::cout << "  output    " << out;
 	if (!exportPath.empty())
 		std::cout << ", " << exportPath;
@@ -122,7 +129,8 @@ int main(int argc, char** argv)
 									  {"--scale", true, "S"},
 									  {"--export-mesh", true, "OUT.obj|OUT.ply"},
 									  {"--segments", true, "OUT.ply|OUT.obj"},
-									  {"--no-segmentation", false, ""}});
+									  {"--no-segmentation", false, ""},
+									  {"--no-triangle-cover", false, ""}});
 		if (args.helpRequested())
 		{
 			std::cout << kUsage;
@@ -157,6 +165,7 @@ int main(int argc, char** argv)
 		options.muTorso = args.number("--mu-torso", options.muTorso, 0.0, huge, /*open=*/true);
 		options.muLimbs = args.number("--mu-limbs", options.muLimbs, 0.0, huge, /*open=*/true);
 		options.maxEllipsoids = args.integer("--max-ellipsoids", options.maxEllipsoids, 1, 100000);
+		options.coverTriangles = !args.has("--no-triangle-cover");
 
 		// Load.
 		const Clock::time_point t0 = Clock::now();

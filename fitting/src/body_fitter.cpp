@@ -102,6 +102,9 @@ struct Cluster
 	EllipsoidFit fit;
 	double error = 0.0; ///< E_j
 	bool frozen = false;
+	/// Mesh vertices of other clusters that this ellipsoid also encloses so that every triangle across a cluster
+	/// boundary lies inside one ellipsoid (coverTriangles); in insertion order, after `members` in the MVEE input.
+	std::vector<int> extras;
 };
 
 /// A set of vertices refined together: the torso (k0 = its parts), or one other region (k0 = 1).
@@ -277,6 +280,28 @@ public:
 		return true;
 	}
 
+	/// Refits cluster c on its members plus its extras (mesh vertices); E_j stays the error over its own members.
+	/// Extras are only ever appended, so the previous core indices are still valid rows and seed the active set.
+	void refitWithExtras(const Group& g, Cluster& c, const TriMesh& mesh)
+	{
+		Clock::time_point t0 = Clock::now();
+		const Eigen::Index n = Eigen::Index(c.members.size());
+		buffer_.resize(n + Eigen::Index(c.extras.size()), 3);
+		for (Eigen::Index r = 0; r < n; ++r)
+			buffer_.row(r) = g.points.row(c.members[std::size_t(r)]);
+		for (std::size_t e = 0; e < c.extras.size(); ++e)
+			buffer_.row(n + Eigen::Index(e)) = mesh.V.row(c.extras[e]);
+		warm_.clear();
+		for (int core : c.fit.coreIndices)
+			if (core >= 0 && core < buffer_.rows())
+				warm_.push_back(core);
+		c.fit = warm_.empty() ? minimumVolumeEllipsoid(buffer_, mvee_) : minimumVolumeEllipsoid(buffer_, mvee_, warm_);
+		Clock::time_point t1 = Clock::now();
+		mveeMs += std::chrono::duration<double, std::milli>(t1 - t0).count();
+		c.error = meanRadialError(c.fit.ellipsoid, g.points, c.members);
+		errorMs += msSince(t1);
+	}
+
 private:
 	/// MVEE and E_j of a cluster. With `parent`, the parent's MVEE core points that are also in this cluster
 	/// seed the active set (mvee.h warm start).
@@ -413,6 +438,133 @@ Region majorityRegion(const Group& g, const Cluster& c, const std::vector<Region
 	return Region(int(std::max_element(votes.begin(), votes.end()) - votes.begin()));
 }
 
+struct CoverStats
+{
+	int rounds = 0;       ///< refit rounds that added points
+	int extraPoints = 0;  ///< sum of the clusters' extras
+	int uncovered = 0;    ///< triangles still not inside one ellipsoid when the round cap was hit (expected 0)
+	double ms = 0.0;
+};
+
+/// Triangle cover (coverTriangles): the clusters partition the vertices, so every ellipsoid encloses its own
+/// vertices and, by convexity, every triangle whose corners are all its own. A triangle whose corners belong to
+/// different clusters can bulge out between two ellipsoids: a sliver of skin outside the union, where cloth then
+/// rests inside the body. Each such triangle that no ellipsoid contains (all three corners at zeta <= 1 + 1e-9) is
+/// given to the corner cluster whose ellipsoid is closest to containing it (smallest max zeta of the corners), that
+/// cluster encloses the missing corners as extras, and its MVEE is refitted. Refits move ellipsoids, so the check
+/// repeats until no triangle is uncovered. Extras only grow and each round adds at least one new (cluster, vertex)
+/// pair, so the loop ends; `maxRounds` is a safety cap only.
+CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner)
+{
+	const Clock::time_point t0 = Clock::now();
+	CoverStats stats;
+	struct Ref
+	{
+		int g, j;
+	};
+	std::vector<Ref> refs;
+	std::vector<int> owner(std::size_t(mesh.vertexCount()), -1);
+	for (std::size_t gi = 0; gi < groups.size(); ++gi)
+		for (std::size_t j = 0; j < groups[gi].clusters.size(); ++j)
+		{
+			const int id = int(refs.size());
+			refs.push_back({int(gi), int(j)});
+			for (int m : groups[gi].clusters[j].members)
+				owner[std::size_t(groups[gi].vertices[std::size_t(m)])] = id;
+		}
+	auto cluster = [&](int id) -> Cluster& { return groups[std::size_t(refs[std::size_t(id)].g)].clusters[std::size_t(refs[std::size_t(id)].j)]; };
+
+	// Triangles across a cluster boundary (with all corners fitted).
+	std::vector<int> cross;
+	for (int f = 0; f < mesh.F.rows(); ++f)
+	{
+		const int a = owner[std::size_t(mesh.F(f, 0))], b = owner[std::size_t(mesh.F(f, 1))],
+				  c = owner[std::size_t(mesh.F(f, 2))];
+		if (a >= 0 && b >= 0 && c >= 0 && (a != b || b != c))
+			cross.push_back(f);
+	}
+
+	constexpr double kInside = 1.0 + 1e-9; // the MVEE's own enclosure guarantee (mvee.h)
+	constexpr int maxRounds = 50;
+	const int k = int(refs.size());
+	std::vector<Eigen::AlignedBox3d> boxes(refs.size());
+	std::vector<std::vector<int>> add(refs.size());
+	for (int round = 0;; ++round)
+	{
+		for (int id = 0; id < k; ++id)
+			boxes[std::size_t(id)] = cluster(id).fit.ellipsoid.aabb();
+		bool anyAdded = false;
+		stats.uncovered = 0;
+		for (int f : cross)
+		{
+			const std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
+			const std::array<Eigen::Vector3d, 3> p = {mesh.V.row(v[0]).transpose(), mesh.V.row(v[1]).transpose(),
+													   mesh.V.row(v[2]).transpose()};
+			auto maxZeta = [&](int id) {
+				const Ellipsoid& e = cluster(id).fit.ellipsoid;
+				return std::max({e.zeta(p[0]), e.zeta(p[1]), e.zeta(p[2])});
+			};
+			bool covered = false;
+			for (int id = 0; id < k && !covered; ++id)
+			{
+				const Eigen::AlignedBox3d& box = boxes[std::size_t(id)];
+				covered = box.contains(p[0]) && box.contains(p[1]) && box.contains(p[2]) && maxZeta(id) <= kInside;
+			}
+			if (covered)
+				continue;
+			++stats.uncovered;
+			int best = -1;
+			double bestZeta = 0.0;
+			for (int c = 0; c < 3; ++c)
+			{
+				const int id = owner[std::size_t(v[std::size_t(c)])];
+				const double z = maxZeta(id);
+				if (best < 0 || z < bestZeta || (z == bestZeta && id < best))
+				{
+					best = id;
+					bestZeta = z;
+				}
+			}
+			for (int c = 0; c < 3; ++c)
+				if (owner[std::size_t(v[std::size_t(c)])] != best)
+					add[std::size_t(best)].push_back(v[std::size_t(c)]);
+		}
+		if (stats.uncovered == 0 || round == maxRounds)
+			break;
+		for (int id = 0; id < k; ++id)
+		{
+			std::vector<int>& extra = add[std::size_t(id)];
+			if (extra.empty())
+				continue;
+			std::sort(extra.begin(), extra.end());
+			extra.erase(std::unique(extra.begin(), extra.end()), extra.end());
+			Cluster& c = cluster(id);
+			std::vector<int> sortedOld = c.extras;
+			std::sort(sortedOld.begin(), sortedOld.end());
+			bool grew = false;
+			for (int vtx : extra)
+				if (!std::binary_search(sortedOld.begin(), sortedOld.end(), vtx))
+				{
+					c.extras.push_back(vtx);
+					grew = true;
+				}
+			extra.clear();
+			if (grew)
+			{
+				refiner.refitWithExtras(groups[std::size_t(refs[std::size_t(id)].g)], c, mesh);
+				anyAdded = true;
+			}
+		}
+		++stats.rounds;
+		if (!anyAdded)
+			break; // every uncovered triangle's corners are already enclosed points: cannot happen, but never spin
+	}
+	for (int id = 0; id < k; ++id)
+		stats.extraPoints += int(cluster(id).extras.size());
+	stats.ms = msSince(t0);
+	return stats;
+}
+
 } // namespace
 
 BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const BodyFitOptions& options)
@@ -521,6 +673,16 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 			groups[std::size_t(bestG)].clusters[std::size_t(bestJ)].frozen = true;
 			++result.splitsRejected;
 		}
+	}
+	if (options.coverTriangles)
+	{
+		const CoverStats cover = coverTriangles(mesh, groups, refiner);
+		result.coverRounds = cover.rounds;
+		result.coverExtraPoints = cover.extraPoints;
+		result.setTiming("fitting.cover", cover.ms);
+		if (cover.uncovered > 0)
+			result.warnings.push_back(std::to_string(cover.uncovered) +
+									  " triangle(s) across ellipsoid boundaries are not inside any ellipsoid");
 	}
 	const double fittingMs = msSince(t0);
 

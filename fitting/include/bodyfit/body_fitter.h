@@ -19,6 +19,15 @@
 /// `maxEllipsoids`, or after `maxSplits` attempts. Termination is guaranteed: every attempt adds at least one
 /// ellipsoid (bounded by the budget) or freezes one.
 ///
+/// Triangle cover (after refinement, on by default). The clusters partition the vertices, so the union of the
+/// MVEEs contains every vertex but not every triangle: a triangle whose corners lie in different clusters can bulge
+/// out between two ellipsoids, and cloth resting on the union then sits inside the skin there. Every such triangle
+/// that no ellipsoid contains is handed to the corner cluster whose ellipsoid comes closest to containing it
+/// (smallest max zeta of its corners); that cluster also encloses the other corners ("extras") and is refitted,
+/// until every triangle lies inside one ellipsoid (convexity). E_j stays the error over a cluster's own vertices.
+/// Measured on female_young (13,380 vertices, 85 ellipsoids): 1,163 extra points, 2 rounds, 5 ms; mean E_j
+/// 14.1 -> 15.8 mm. The thresholds bind the refinement before the cover.
+///
 /// Deterministic bit for bit: no randomness, ordered containers only, fixed tie rules.
 
 #include "bodyfit/fit_error.h"
@@ -64,6 +73,12 @@ struct BodyFitOptions
 	double mveeTolerance = 1e-3;
 	/// H used for the relative quantities; <= 0 means the y extent of the mesh.
 	double height = 0.0;
+	/// Triangle cover: after refinement, every triangle whose corners lie in different clusters is made to lie
+	/// inside one ellipsoid (one of its corner clusters encloses the other corners too, and is refitted), so the
+	/// union of the ellipsoids contains the whole mesh surface, not only its vertices. Without it, skin between two
+	/// ellipsoids bulges out of the union in thin slivers and cloth resting on the union ends inside the body.
+	/// E_j and the error report stay over each cluster's own vertices. Costs a few refits (see BodyFit::cover*).
+	bool coverTriangles = true;
 	/// Compute the true (Eberly) distance statistics of the final ellipsoids (costs ~1 closest-point query/vertex).
 	bool trueDistance = true;
 };
@@ -127,6 +142,10 @@ struct BodyFit
 	RefineStatus status = RefineStatus::Converged;
 	int splitsAccepted = 0;
 	int splitsRejected = 0;
+	/// Triangle cover (BodyFitOptions::coverTriangles): refit rounds, and vertices enclosed by an ellipsoid other
+	/// than their own cluster's (summed over ellipsoids).
+	int coverRounds = 0;
+	int coverExtraPoints = 0;
 
 	/// Vertex-weighted mean of E_j (= mean radial error over all fitted vertices), max E_j, and the
 	/// vertex-weighted mean / max of the true distance. Ellipsoids with vertexCount 0 contribute nothing.
