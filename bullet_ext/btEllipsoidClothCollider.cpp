@@ -30,6 +30,10 @@ const int kMaxPushDirections = 56;
 /// doubling (30 ulps in total); anything that needs more is a geometric problem for the union push-out.
 const int kMaxNudges = 4;
 
+/// Push-out: at most this many steps along one ray while its rounded exit point is still inside an ellipsoid (the
+/// margin doubles from 2 ulps of the coordinates, so 2^40 ulps is far past any union).
+const int kMaxRealiseSteps = 40;
+
 /// Bisection steps when a crease shortens the skin offset: the offset is then exact to skin / 2^6 (0.03 mm at 2 mm).
 const int kCreaseBisections = 6;
 
@@ -86,6 +90,7 @@ void btEllipsoidClothStats::reset()
 	m_nodesCorrected = 0;
 	m_nodesPushedOut = 0;
 	m_nodesRepaired = 0;
+	m_pushOutFallbacks = 0;
 	m_collisionSeconds = 0.0;
 	m_collisionCpuSeconds = 0.0;
 	m_minZeta = SIMD_INFINITY;
@@ -99,6 +104,7 @@ void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
 	m_nodesCorrected += other.m_nodesCorrected;
 	m_nodesPushedOut += other.m_nodesPushedOut;
 	m_nodesRepaired += other.m_nodesRepaired;
+	m_pushOutFallbacks += other.m_pushOutFallbacks;
 	m_collisionSeconds += other.m_collisionSeconds;
 	m_collisionCpuSeconds += other.m_collisionCpuSeconds;
 	m_minZeta = btMin(m_minZeta, other.m_minZeta);
@@ -290,11 +296,10 @@ void btEllipsoidClothCollider::applyVelocityRule(btSoftBody::Node& node, const b
 	node.m_v = vb + vr;
 }
 
-btScalar btEllipsoidClothCollider::unionExitAlongRay(const btVector3& origin, const btVector3& dir, btScalar skin,
-													 int* exitEllipsoid)
+void btEllipsoidClothCollider::collectRayIntervals(const btVector3& origin, const btVector3& dir, btScalar skin)
 {
-	// Every ellipsoid's interval along the ray, widened by the skin on both sides; then the first uncovered
-	// parameter s >= 0 found by a sweep over the intervals sorted by start.
+	// Every ellipsoid's interval along the ray, widened by the skin on both sides, sorted by start. The quadratic is
+	// set up relative to each ellipsoid's centre (origin - c is exact or nearly so for nearby points, also 1 km out).
 	const btEllipsoidWorldCache& cache = m_current;
 	const int ne = cache.size();
 	m_intervals.resize(0);
@@ -339,14 +344,19 @@ btScalar btEllipsoidClothCollider::unionExitAlongRay(const btVector3& origin, co
 		m_intervals[2 * j + 3] = s1;
 		m_intervalOwner[j + 1] = owner;
 	}
-	// Intervals that start within a few ulps of the current exit count as overlapping: two ellipsoids that touch
-	// share a boundary point, and stopping there would leave the node on (rounding: inside) the second one.
-	const btScalar scale = origin.absolute()[origin.absolute().maxAxis()] + btScalar(1e-3);
-	btScalar s = btScalar(0);
+}
+
+btScalar btEllipsoidClothCollider::firstUncovered(btScalar from, btScalar scale, int* exitEllipsoid) const
+{
+	// Sweep over the sorted intervals: the first parameter s >= from that no interval covers. Intervals that start
+	// within a few ulps of the current s count as overlapping: two ellipsoids that touch share a boundary point, and
+	// stopping there would leave the node on (rounding: inside) the second one.
+	const int count = m_intervalOwner.size();
+	btScalar s = from;
 	int exit = -1;
 	for (int i = 0; i < count; ++i)
 	{
-		if (m_intervals[2 * i] > s + SIMD_EPSILON * btScalar(8) * (scale + s))
+		if (m_intervals[2 * i] > s + SIMD_EPSILON * btScalar(8) * (scale + btFabs(s)))
 			break;
 		if (m_intervals[2 * i + 1] > s)
 		{
@@ -357,6 +367,56 @@ btScalar btEllipsoidClothCollider::unionExitAlongRay(const btVector3& origin, co
 	if (exitEllipsoid)
 		*exitEllipsoid = exit;
 	return s;
+}
+
+btScalar btEllipsoidClothCollider::unionExitAlongRay(const btVector3& origin, const btVector3& dir, btScalar skin,
+													 int* exitEllipsoid)
+{
+	collectRayIntervals(origin, dir, skin);
+	const btScalar scale = origin.absolute()[origin.absolute().maxAxis()] + btScalar(1e-3);
+	return firstUncovered(btScalar(0), scale, exitEllipsoid);
+}
+
+btScalar btEllipsoidClothCollider::realiseExit(const btVector3& origin, const btVector3& dir, btScalar skin,
+											   btVector3& out, int* exitEllipsoid)
+{
+	// The exact union exit s along the ray is a real number; the node needs a btScalar point. Rounding
+	// origin + dir * s to the coordinate grid (6e-5 m at 1 km in float) can land a hair inside the ellipsoid the ray
+	// leaves, or, where the exit sits on a crease or a touching point, inside the neighbour. The point is therefore
+	// checked with the same zeta evaluation as the guarantee, against every ellipsoid near it; while one contains it,
+	// the parameter moves on along the same ray, past that ellipsoid's chord (and then to the next uncovered
+	// parameter of the union), by a margin that starts at 2 ulps of the coordinates and doubles. s only grows, so
+	// this cannot oscillate between two ellipsoids (stepping along surface normals did: in a crease the normal of
+	// one points into the other). Past the last chord every point of the ray is outside the union in exact
+	// arithmetic, and the doubling margin outgrows the rounding, so the loop ends outside; kMaxRealiseSteps bounds it.
+	collectRayIntervals(origin, dir, skin);
+	const btScalar scale = origin.absolute()[origin.absolute().maxAxis()] + btScalar(1e-3);
+	int exit = -1;
+	btScalar s = firstUncovered(btScalar(0), scale, &exit);
+	btScalar margin = SIMD_EPSILON * btScalar(2) * (scale + btFabs(s));
+	btScalar z = SIMD_INFINITY;
+	for (int attempt = 0; attempt < kMaxRealiseSteps; ++attempt)
+	{
+		out = origin + dir * s;
+		int worst = -1;
+		z = minZetaAll(out, &worst);
+		if (z >= btScalar(1))
+			break;
+		btScalar next = s + margin;
+		for (int i = 0; i < m_intervalOwner.size(); ++i)
+			if (m_intervalOwner[i] == worst)
+				next = btMax(next, m_intervals[2 * i + 1] + margin);
+		int nextExit = -1;
+		s = firstUncovered(next, scale, &nextExit);
+		if (nextExit >= 0)
+			exit = nextExit;
+		else if (exit < 0)
+			exit = worst;
+		margin *= btScalar(2);
+	}
+	if (exitEllipsoid)
+		*exitEllipsoid = exit;
+	return z >= btScalar(1) ? s : SIMD_INFINITY;
 }
 
 btScalar btEllipsoidClothCollider::minZetaAll(const btVector3& p, int* which) const
@@ -452,43 +512,81 @@ btScalar btEllipsoidClothCollider::pushOut(btSoftBody::Node& node, const btVecto
 	if (ndirs == 0)
 		return minZetaAll(from, 0); // not inside anything (caller's tolerance): nothing to do
 
+	// Nominal exit of the union along every candidate direction, then the shortest that a btScalar point realises
+	// (realiseExit; a realised exit is never shorter than the nominal one, so directions are tried in nominal order
+	// until the next nominal exit is longer than the best realised one).
+	btScalar nominal[kMaxPushDirections];
+	for (int d = 0; d < ndirs; ++d)
+		nominal[d] = unionExitAlongRay(from, dirs[d], skin, 0);
 	btScalar bestS = SIMD_INFINITY;
 	int bestDir = -1, bestExit = -1;
+	btVector3 out = from;
+	bool tried[kMaxPushDirections];
 	for (int d = 0; d < ndirs; ++d)
+		tried[d] = false;
+	for (int round = 0; round < ndirs; ++round)
 	{
+		int next = -1;
+		for (int d = 0; d < ndirs; ++d)
+			if (!tried[d] && (next < 0 || nominal[d] < nominal[next]))
+				next = d;
+		if (next < 0 || !(nominal[next] < bestS))
+			break;
+		tried[next] = true;
+		btVector3 p;
 		int exit = -1;
-		const btScalar s = unionExitAlongRay(from, dirs[d], skin, &exit);
+		const btScalar s = realiseExit(from, dirs[next], skin, p, &exit);
 		if (s < bestS)
 		{
 			bestS = s;
-			bestDir = d;
+			bestDir = next;
 			bestExit = exit;
+			out = p;
 		}
 	}
-	btVector3 out = from + dirs[bestDir] * bestS;
-	// Rounding can leave the exit point a hair inside when the skin is 0: step out along the normal of the
-	// ellipsoid that still contains it (not along the ray, which may leave at a grazing angle), by a few ulps of
-	// the coordinates, growing geometrically.
-	int worst = -1;
-	btScalar z = minZetaAll(out, &worst);
-	btScalar nudge = SIMD_EPSILON * btScalar(2) * (out.absolute()[out.absolute().maxAxis()] + btScalar(1e-3));
-	for (int attempt = 0; attempt < kMaxNudges && z < btScalar(1) && worst >= 0; ++attempt)
+	btScalar z;
+	btVector3 normal;
+	if (bestDir >= 0)
 	{
-		const btEllipsoidWorldCache::Entry& e = cache[worst];
-		btVector3 g = transposeTimes(e.m_whiten, e.m_whiten * (out - e.m_center));
-		const btScalar gl = g.length();
-		out += (gl > SIMD_EPSILON ? g / gl : dirs[bestDir]) * nudge;
-		nudge *= btScalar(2);
-		z = minZetaAll(out, &worst);
+		z = minZetaAll(out, 0);
+		normal = dirs[bestDir];
+		if (bestExit >= 0)
+		{
+			const btEllipsoidWorldCache::Entry& e = cache[bestExit];
+			const btVector3 g = transposeTimes(e.m_whiten, e.m_whiten * (out - e.m_center));
+			const btScalar gl = g.length();
+			if (gl > SIMD_EPSILON)
+				normal = g / gl;
+		}
 	}
-	btVector3 normal = dirs[bestDir];
-	if (bestExit >= 0)
+	else
 	{
-		const btEllipsoidWorldCache::Entry& e = cache[bestExit];
-		btVector3 g = transposeTimes(e.m_whiten, e.m_whiten * (out - e.m_center));
-		const btScalar gl = g.length();
-		if (gl > SIMD_EPSILON)
-			normal = g / gl;
+		// Safe fallback (no direction realised an exit; not seen in 1e7 random cases): leave the box of the whole
+		// union along the nominally shortest direction, grown by the skin and a margin of 1e-5 of its size plus
+		// 8 ulps of the coordinates. A point outside an ellipsoid's box is outside the ellipsoid (|p - c|_i >
+		// extent_i implies zeta > 1 by Cauchy-Schwarz), and the margin is far above zeta's rounding error.
+		int d0 = 0;
+		for (int d = 1; d < ndirs; ++d)
+			if (nominal[d] < nominal[d0])
+				d0 = d;
+		const btVector3& dir = dirs[d0];
+		const btVector3 lo = cache.getAabbMin(), hi = cache.getAabbMax();
+		const btScalar big = btMax(lo.absolute()[lo.absolute().maxAxis()], hi.absolute()[hi.absolute().maxAxis()]);
+		const btScalar grow = skin + (hi - lo).length() * btScalar(1e-5) + SIMD_EPSILON * btScalar(8) * big;
+		// Leaving one slab of the grown box leaves the box: the smallest slab exit (|dir| = 1, so its largest
+		// component is >= 1/sqrt(3) and at least one slab is crossed).
+		btScalar sBox = SIMD_INFINITY;
+		for (int k = 0; k < 3; ++k)
+		{
+			if (dir[k] > btScalar(0.01))
+				sBox = btMin(sBox, (hi[k] + grow - from[k]) / dir[k]);
+			else if (dir[k] < btScalar(-0.01))
+				sBox = btMin(sBox, (lo[k] - grow - from[k]) / dir[k]);
+		}
+		out = from + dir * btMax(sBox, btScalar(0));
+		z = minZetaAll(out, 0);
+		normal = dir;
+		++m_lastStats.m_pushOutFallbacks;
 	}
 	const btVector3 center = bestExit >= 0 ? cache[bestExit].m_center : from;
 	applyVelocityRule(node, out - normal * skin, normal, start, center, dt);

@@ -26,6 +26,7 @@ struct btEllipsoidClothStats
 	int m_nodesCorrected;    ///< nodes whose path q -> x entered the union: placed at the earliest entry
 	int m_nodesPushedOut;    ///< nodes that started the substep inside (or ended inside after correction): pushed out
 	int m_nodesRepaired;     ///< nodes the final guarantee check had to move again (should stay 0)
+	int m_pushOutFallbacks;  ///< push-outs that no candidate ray could realise: moved out of the union's box (stays 0)
 	double m_collisionSeconds; ///< wall time spent in the collider (world-cache update + node loop)
 	double m_collisionCpuSeconds; ///< the same as thread CPU time (robust on a busy machine; 0 where unsupported)
 	btScalar m_minZeta;      ///< smallest zeta over processed nodes after the response (>= 1 when the guarantee holds)
@@ -161,7 +162,11 @@ private:
 	btVector3 bodyVelocityAt(const btVector3& worldPoint, btScalar dt) const;
 	void applyVelocityRule(btSoftBody::Node& node, const btVector3& surfacePoint, const btVector3& normal,
 						   const btVector3& start, const btVector3& center, btScalar dt) const;
+	void collectRayIntervals(const btVector3& origin, const btVector3& dir, btScalar skin);
+	btScalar firstUncovered(btScalar from, btScalar scale, int* exitEllipsoid) const;
 	btScalar unionExitAlongRay(const btVector3& origin, const btVector3& dir, btScalar skin, int* exitEllipsoid);
+	btScalar realiseExit(const btVector3& origin, const btVector3& dir, btScalar skin, btVector3& out,
+						 int* exitEllipsoid);
 	btScalar minZetaAll(const btVector3& p, int* which) const;
 	btScalar minZetaOver(const int* candidates, int count, const btVector3& p, int* which) const;
 	btScalar nudgeOut(const int* candidates, int count, btVector3& p, const btVector3& fallbackDir) const;

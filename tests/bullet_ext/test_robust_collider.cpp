@@ -281,6 +281,7 @@ struct Tally
 	long long corrected = 0;
 	long long pushedOut = 0;
 	long long repaired = 0;
+	long long fallbacks = 0; ///< push-outs that left through the union's box (the collider's safe fallback)
 	long long failures = 0;
 	long long floatLimit = 0; ///< float build, 1000:1 sets: entry-point failures counted, not asserted (see below)
 	Real worstZeta = INFINITY;
@@ -396,6 +397,7 @@ void runSet(Rng& rng, btEllipsoidClothWorld& world, const SetSpec& spec, int pat
 		tally.corrected += corrected ? 1 : 0;
 		tally.pushedOut += pushed ? 1 : 0;
 		tally.repaired += repaired ? 1 : 0;
+		tally.fallbacks += after.m_pushOutFallbacks - before.m_pushOutFallbacks;
 
 		const Real coordMag = std::max(Real(std::max(q.length(), x.length())), scaleMax);
 		const Real tol = 64 * ulp * coordMag + Real(1e-6);
@@ -447,6 +449,24 @@ void runSet(Rng& rng, btEllipsoidClothWorld& world, const SetSpec& spec, int pat
 				std::snprintf(buf, sizeof(buf), " [entry %d, start-inside %d, repaired %d]", int(corrected), int(pushed),
 							  int(repaired));
 				tally.firstFailure[type] += buf;
+				if (std::getenv("BODYFIT_ROBUST_VERBOSE"))
+				{
+					// Exact inputs (hexadecimal floats) for a regression test: addEllipsoid arguments, q, x.
+					std::snprintf(buf, sizeof(buf), "\n  exact: q {%a, %a, %a} x {%a, %a, %a}", double(q.x()),
+								  double(q.y()), double(q.z()), double(x.x()), double(x.y()), double(x.z()));
+					tally.firstFailure[type] += buf;
+					for (size_t k = 0; k < spec.e.size(); ++k)
+					{
+						const SetSpec::E& e = spec.e[k];
+						std::snprintf(buf, sizeof(buf),
+									  "\n  exact e%d: c {%a, %a, %a} a {%a, %a, %a} R {%a, %a, %a, %a, %a, %a, %a, %a, %a}",
+									  int(k), double(e.c.x()), double(e.c.y()), double(e.c.z()), double(e.a.x()),
+									  double(e.a.y()), double(e.a.z()), double(e.R[0][0]), double(e.R[0][1]),
+									  double(e.R[0][2]), double(e.R[1][0]), double(e.R[1][1]), double(e.R[1][2]),
+									  double(e.R[2][0]), double(e.R[2][1]), double(e.R[2][2]));
+						tally.firstFailure[type] += buf;
+					}
+				}
 				if (std::getenv("BODYFIT_ROBUST_VERBOSE"))
 					for (int k = 0; k < shape.getNumEllipsoids(); ++k)
 					{
@@ -507,9 +527,9 @@ void runProperty(long long totalCases, std::uint64_t seed)
 		char line[400];
 		std::snprintf(line, sizeof(line),
 					  "%-12s %-6s cases %lld: untouched %lld, entry %lld, start-inside %lld, repaired %lld, "
-					  "min zeta %.9f, failures %lld (non-finite %lld, inside %lld, entry too far %lld, push too far %lld)",
+					  "box fallbacks %lld, min zeta %.9f, failures %lld (non-finite %lld, inside %lld, entry too far %lld, push too far %lld)",
 					  kindName(k / 2), (k % 2) ? "+1km" : "origin", t.cases, t.untouched, t.corrected, t.pushedOut,
-					  t.repaired, double(t.worstZeta), t.failures, t.byType[0], t.byType[1], t.byType[2], t.byType[3]);
+					  t.repaired, t.fallbacks, double(t.worstZeta), t.failures, t.byType[0], t.byType[1], t.byType[2], t.byType[3]);
 		UNSCOPED_INFO(line);
 		if (t.floatLimit)
 			WARN(kindName(k / 2) << ((k % 2) ? " +1km" : " origin") << ": " << t.floatLimit
@@ -534,4 +554,134 @@ TEST_CASE("robust: collider response on random paths vs random ellipsoid sets", 
 TEST_CASE("robust: collider response, 1e7 paths", "[.slow][robust][collider][property]")
 {
 	runProperty(casesFromEnvironment(10000000), 0x5EED0002ull);
+}
+
+namespace
+{
+
+/// One ellipsoid of a regression case, as passed to addEllipsoid (exact float values, hexadecimal).
+struct ExactEllipsoid
+{
+	double c[3];
+	double a[3];
+	double R[9]; ///< rows
+};
+
+/// Runs one node path q -> x (skin 0) through collide() against the given set and checks the property test's
+/// assertions: finite, outside every ellipsoid (same tolerance as insideExcess), within the push-out budget.
+void runRegressionPath(const ExactEllipsoid* ells, int count, const double* q3, const double* x3)
+{
+	btEllipsoidCompoundShape shape;
+	for (int i = 0; i < count; ++i)
+	{
+		const ExactEllipsoid& e = ells[i];
+		const btMatrix3x3 R(btScalar(e.R[0]), btScalar(e.R[1]), btScalar(e.R[2]), btScalar(e.R[3]), btScalar(e.R[4]),
+							btScalar(e.R[5]), btScalar(e.R[6]), btScalar(e.R[7]), btScalar(e.R[8]));
+		shape.addEllipsoid(btVector3(btScalar(e.c[0]), btScalar(e.c[1]), btScalar(e.c[2])), R,
+						   btVector3(btScalar(e.a[0]), btScalar(e.a[1]), btScalar(e.a[2])));
+	}
+	btCollisionObject body;
+	body.setCollisionShape(&shape);
+	body.setWorldTransform(btTransform::getIdentity());
+	btEllipsoidClothWorld world;
+	btEllipsoidClothCollider::Config config;
+	config.m_skinOffset = btScalar(0);
+	btEllipsoidClothCollider* collider = btEllipsoidClothCollider::install(world.getWorld(), &body, config);
+	REQUIRE(collider != 0);
+	const btScalar dt = btScalar(1.0 / 120.0);
+	collider->beginSubstep(dt);
+
+	const btVector3 q = btVector3(btScalar(q3[0]), btScalar(q3[1]), btScalar(q3[2]));
+	const btVector3 x = btVector3(btScalar(x3[0]), btScalar(x3[1]), btScalar(x3[2]));
+	btVector3 x0(0, 0, 0);
+	btScalar mass = 1;
+	btSoftBody cloth(&world.getWorldInfo(), 1, &x0, &mass);
+	btSoftBody::Node& node = cloth.m_nodes[0];
+	node.m_x = x;
+	node.m_q = q;
+	node.m_v = (x - q) / dt;
+	collider->collide(&cloth, dt, &q);
+	const btVector3 result = node.m_x;
+
+	Real z = INFINITY;
+	const Real excess = insideExcess(shape, result, &z);
+	Real pushBudget = 0;
+	for (int k = 0; k < shape.getNumEllipsoids(); ++k)
+	{
+		const btVector3& a = shape.getEllipsoid(k).m_semiAxes;
+		pushBudget += 2 * Real(btMax(a.x(), btMax(a.y(), a.z())));
+	}
+	INFO("result (" << double(result.x()) << ", " << double(result.y()) << ", " << double(result.z()) << "), min zeta "
+					<< double(z) << ", pushed " << collider->getLastSubstepStats().m_nodesPushedOut << ", moved "
+					<< double(dist(result, x)) << " of budget " << double(pushBudget));
+	CHECK(finite3(result));
+	CHECK(finite3(node.m_v));
+	// Same tolerance as the property test: 1e-6 plus the btScalar rounding floor of zeta (insideExcess).
+	CHECK(excess <= 0);
+	// Push-out budget: the ray crosses each ellipsoid's chord at most once; 64 ulps of 1 km + 1e-6 m for rounding.
+	CHECK(dist(result, x) <= pushBudget + 64 * Real(SIMD_EPSILON) * 1000 + Real(1e-6));
+	CHECK(collider->getLastSubstepStats().m_minZeta >= btScalar(1));
+	btEllipsoidClothCollider::uninstall(world.getWorld(), collider);
+}
+
+} // namespace
+
+// The two failures of the [.slow] float run (seed 0x5EED0002, before the fix): a node that starts inside, 1 km from
+// the origin, skin 0, whose push-out ended inside a neighbour. Exact inputs printed by BODYFIT_ROBUST_VERBOSE=1.
+// In the float64 build the same (float-representable) inputs are a valid, nearby case.
+TEST_CASE("robust regression: push-out of a touching pair 1 km from the origin ends outside both",
+		  "[robust][collider][regression]")
+{
+	const ExactEllipsoid ells[] = {
+		{{0x1.75811p+8, 0x1.821fc2p+9, -0x1.00e9b6p+9},
+		 {0x1.346258p-3, 0x1.2156dep-2, 0x1.7ee36ap-4},
+		 {0x1.51692cp-1, -0x1.5d4eeep-1, -0x1.443b68p-2, -0x1.5a62a6p-1, -0x1.71794p-1, 0x1.2cacfp-3, -0x1.508abcp-2,
+		  0x1.e11f5p-4, -0x1.dfcdd8p-1}},
+		{{0x1.75880ep+8, 0x1.82205p+9, -0x1.0104a6p+9},
+		 {0x1.b7effap-4, 0x1.b7effap-4, 0x1.b7effap-4},
+		 {1, 0, 0, 0, 1, 0, 0, 0, 1}}};
+	const double q[3] = {0x1.758c8ap+8, 0x1.821ecep+9, -0x1.00e8d6p+9};
+	const double x[3] = {0x1.7589dap+8, 0x1.82207ep+9, -0x1.00f6fp+9};
+	runRegressionPath(ells, 2, q, x);
+}
+
+TEST_CASE("robust regression: push-out in an 8-ellipsoid chain 1 km from the origin ends outside all",
+		  "[robust][collider][regression]")
+{
+	const ExactEllipsoid ells[] = {
+		{{0x1.902b72p+9, 0x1.6e7abcp+8, 0x1.da783ep+8},
+		 {0x1.449f96p-4, 0x1.1b9214p-3, 0x1.572bap-4},
+		 {0x1.ac109ep-1, 0x1.458564p-3, 0x1.0cda4p-1, 0x1.801c8cp-3, 0x1.a21f2cp-1, -0x1.177548p-1, -0x1.07f9bcp-1,
+		  0x1.1c11c8p-1, 0x1.4e503cp-1}},
+		{{0x1.903622p+9, 0x1.6e6ac2p+8, 0x1.da6b34p+8},
+		 {0x1.1a75d4p-4, 0x1.5e0aaap-4, 0x1.f677e4p-4},
+		 {-0x1.42f938p-1, 0x1.52bb9ap-1, -0x1.9f2c52p-2, 0x1.5cfe0ap-1, 0x1.71bd0cp-1, 0x1.e2c732p-4, 0x1.7baa56p-2,
+		  -0x1.9db72p-3, -0x1.d01f74p-1}},
+		{{0x1.902ef4p+9, 0x1.6e8e22p+8, 0x1.da638p+8},
+		 {0x1.dd3ff6p-3, 0x1.578774p-5, 0x1.ae43cep-3},
+		 {0x1.602638p-1, 0x1.c16274p-4, 0x1.6f6542p-1, -0x1.ede084p-2, 0x1.9d9e54p-1, 0x1.5ae6c2p-2, -0x1.15c52ap-1,
+		  -0x1.287e52p-1, 0x1.37936p-1}},
+		{{0x1.902b1ap+9, 0x1.6e89cap+8, 0x1.da5a6ap+8},
+		 {0x1.e2b6dep-5, 0x1.687b5p-4, 0x1.06a0bep-3},
+		 {0x1.aaff7cp-2, 0x1.5a4022p-1, -0x1.36ec26p-1, -0x1.44b96cp-2, -0x1.0929f4p-1, -0x1.96c7e4p-1, -0x1.b41ebep-1,
+		  0x1.0c38acp-1, -0x1.8a4p-10}},
+		{{0x1.903768p+9, 0x1.6e8296p+8, 0x1.da6b3p+8},
+		 {0x1.b31aa6p-3, 0x1.170302p-3, 0x1.d3b3a4p-4},
+		 {-0x1.daa73p-3, -0x1.2af188p-1, -0x1.8e5dcep-1, 0x1.cb83eep-2, -0x1.8c323p-1, 0x1.c9c066p-2, -0x1.b9e60ep-1,
+		  -0x1.f6e134p-3, 0x1.c3f27cp-2}},
+		{{0x1.90335ep+9, 0x1.6e83dcp+8, 0x1.da80dap+8},
+		 {0x1.b67ce2p-5, 0x1.95eef4p-5, 0x1.03e7ccp-4},
+		 {-0x1.b7738p-3, 0x1.20bbccp-4, -0x1.f2c522p-1, -0x1.14c3ccp-1, 0x1.a4efaap-1, 0x1.6dafeep-3, 0x1.a080f6p-1,
+		  0x1.213aeep-1, -0x1.1b40ap-3}},
+		{{0x1.902ef8p+9, 0x1.6e7ee2p+8, 0x1.da901ap+8},
+		 {0x1.4cbea8p-5, 0x1.d92f88p-4, 0x1.4c094ap-3},
+		 {-0x1.709e54p-1, -0x1.e69848p-5, -0x1.62087ap-1, -0x1.f719dcp-2, 0x1.7ea0eap-1, 0x1.ca1728p-2, 0x1.f5f16ap-2,
+		  0x1.52d7c4p-1, -0x1.226b14p-1}},
+		{{0x1.903444p+9, 0x1.6e7f7p+8, 0x1.da92a4p+8},
+		 {0x1.674ed2p-3, 0x1.5a5184p-3, 0x1.f4279ep-5},
+		 {0x1.b027a2p-1, -0x1.b5e7ccp-4, -0x1.0d0dc8p-1, 0x1.372828p-7, 0x1.f72b3cp-1, -0x1.7a3c88p-3, 0x1.1285cp-1,
+		  0x1.35082cp-3, 0x1.a9387ep-1}}};
+	const double q[3] = {0x1.903e6ep+9, 0x1.6e8568p+8, 0x1.da8104p+8};
+	const double x[3] = {0x1.9033fcp+9, 0x1.6e86e4p+8, 0x1.da8338p+8};
+	runRegressionPath(ells, 8, q, x);
 }
