@@ -91,6 +91,7 @@ void btEllipsoidClothStats::reset()
 	m_nodesPushedOut = 0;
 	m_nodesRepaired = 0;
 	m_pushOutFallbacks = 0;
+	m_pushOutEnclosed = 0;
 	m_collisionSeconds = 0.0;
 	m_collisionCpuSeconds = 0.0;
 	m_minZeta = SIMD_INFINITY;
@@ -105,6 +106,7 @@ void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
 	m_nodesPushedOut += other.m_nodesPushedOut;
 	m_nodesRepaired += other.m_nodesRepaired;
 	m_pushOutFallbacks += other.m_pushOutFallbacks;
+	m_pushOutEnclosed += other.m_pushOutEnclosed;
 	m_collisionSeconds += other.m_collisionSeconds;
 	m_collisionCpuSeconds += other.m_collisionCpuSeconds;
 	m_minZeta = btMin(m_minZeta, other.m_minZeta);
@@ -378,7 +380,7 @@ btScalar btEllipsoidClothCollider::unionExitAlongRay(const btVector3& origin, co
 }
 
 btScalar btEllipsoidClothCollider::realiseExit(const btVector3& origin, const btVector3& dir, btScalar skin,
-											   btVector3& out, int* exitEllipsoid)
+											   btVector3& out, int* exitEllipsoid, bool lastExit)
 {
 	// The exact union exit s along the ray is a real number; the node needs a btScalar point. Rounding
 	// origin + dir * s to the coordinate grid (6e-5 m at 1 km in float) can land a hair inside the ellipsoid the ray
@@ -392,7 +394,20 @@ btScalar btEllipsoidClothCollider::realiseExit(const btVector3& origin, const bt
 	collectRayIntervals(origin, dir, skin);
 	const btScalar scale = origin.absolute()[origin.absolute().maxAxis()] + btScalar(1e-3);
 	int exit = -1;
-	btScalar s = firstUncovered(btScalar(0), scale, &exit);
+	// With lastExit, start past the last chord along the ray (the end of the ray is then free of the union, so the
+	// point cannot be in a pocket the union encloses); otherwise at the first uncovered parameter.
+	btScalar start = btScalar(0);
+	if (lastExit)
+		for (int i = 0; i < m_intervalOwner.size(); ++i)
+			if (m_intervals[2 * i + 1] > start)
+			{
+				start = m_intervals[2 * i + 1];
+				exit = m_intervalOwner[i];
+			}
+	int firstExit = -1;
+	btScalar s = firstUncovered(start, scale, &firstExit);
+	if (firstExit >= 0)
+		exit = firstExit;
 	btScalar margin = SIMD_EPSILON * btScalar(2) * (scale + btFabs(s));
 	btScalar z = SIMD_INFINITY;
 	for (int attempt = 0; attempt < kMaxRealiseSteps; ++attempt)
@@ -417,6 +432,43 @@ btScalar btEllipsoidClothCollider::realiseExit(const btVector3& origin, const bt
 	if (exitEllipsoid)
 		*exitEllipsoid = exit;
 	return z >= btScalar(1) ? s : SIMD_INFINITY;
+}
+
+bool btEllipsoidClothCollider::escapesUnion(const btVector3& p, const btVector3& preferred) const
+{
+	// A point outside every ellipsoid can still sit in a pocket that the union encloses (fitted bodies have them
+	// under the skin, where neighbouring ellipsoids meet near the surface but not deeper in). Such a point is not
+	// reachable from outside. It is certainly not in a pocket if some ray from it misses the union: try the
+	// preferred direction, then the 26 directions of the 3x3x3 lattice. A ray is blocked when the far root of an
+	// ellipsoid's quadratic lies ahead (s1 > 0); the quadratic is set up relative to each centre.
+	const btEllipsoidWorldCache& cache = m_current;
+	const int ne = cache.size();
+	for (int d = -1; d < 26; ++d)
+	{
+		btVector3 dir = preferred;
+		if (d >= 0)
+		{
+			const int i = d < 13 ? d : d + 1; // lattice index 0..26 without the centre (13)
+			dir = btVector3(btScalar(i % 3 - 1), btScalar((i / 3) % 3 - 1), btScalar(i / 9 - 1)).normalized();
+		}
+		bool blocked = false;
+		for (int k = 0; k < ne && !blocked; ++k)
+		{
+			const btEllipsoidWorldCache::Entry& e = cache[k];
+			const btVector3 u0 = e.m_whiten * (p - e.m_center);
+			const btVector3 w = e.m_whiten * dir;
+			const btScalar a = w.length2();
+			const btScalar b = u0.dot(w);
+			const btScalar c = u0.length2() - btScalar(1);
+			const btScalar disc = b * b - a * c;
+			if (!(a > btScalar(0)) || disc < btScalar(0))
+				continue;
+			blocked = btSqrt(disc) - b > btScalar(0);
+		}
+		if (!blocked)
+			return true;
+	}
+	return false;
 }
 
 btScalar btEllipsoidClothCollider::minZetaAll(const btVector3& p, int* which) const
@@ -536,13 +588,35 @@ btScalar btEllipsoidClothCollider::pushOut(btSoftBody::Node& node, const btVecto
 		btVector3 p;
 		int exit = -1;
 		const btScalar s = realiseExit(from, dirs[next], skin, p, &exit);
-		if (s < bestS)
+		// An exit into a pocket enclosed by the union is not an exit: the node would rest outside every ellipsoid
+		// but inside the body. Only exits from which some ray escapes the union are taken.
+		if (s < bestS && escapesUnion(p, dirs[next]))
 		{
 			bestS = s;
 			bestDir = next;
 			bestExit = exit;
 			out = p;
 		}
+	}
+	if (bestDir < 0)
+	{
+		// Every nearest exit led into a pocket (or was not realised): leave along each ray past its last chord,
+		// which no pocket can contain, and keep the shortest.
+		for (int d = 0; d < ndirs; ++d)
+		{
+			btVector3 p;
+			int exit = -1;
+			const btScalar s = realiseExit(from, dirs[d], skin, p, &exit, true);
+			if (s < bestS)
+			{
+				bestS = s;
+				bestDir = d;
+				bestExit = exit;
+				out = p;
+			}
+		}
+		if (bestDir >= 0)
+			++m_lastStats.m_pushOutEnclosed;
 	}
 	btScalar z;
 	btVector3 normal;

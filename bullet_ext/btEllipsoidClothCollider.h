@@ -27,6 +27,8 @@ struct btEllipsoidClothStats
 	int m_nodesPushedOut;    ///< nodes that started the substep inside (or ended inside after correction): pushed out
 	int m_nodesRepaired;     ///< nodes the final guarantee check had to move again (should stay 0)
 	int m_pushOutFallbacks;  ///< push-outs that no candidate ray could realise: moved out of the union's box (stays 0)
+	int m_pushOutEnclosed;   ///< push-outs whose nearest exits all led into pockets enclosed by the union: the node
+							 ///< left along the ray past its last chord instead
 	double m_collisionSeconds; ///< wall time spent in the collider (world-cache update + node loop)
 	double m_collisionCpuSeconds; ///< the same as thread CPU time (robust on a busy machine; 0 where unsupported)
 	btScalar m_minZeta;      ///< smallest zeta over processed nodes after the response (>= 1 when the guarantee holds)
@@ -166,7 +168,8 @@ private:
 	btScalar firstUncovered(btScalar from, btScalar scale, int* exitEllipsoid) const;
 	btScalar unionExitAlongRay(const btVector3& origin, const btVector3& dir, btScalar skin, int* exitEllipsoid);
 	btScalar realiseExit(const btVector3& origin, const btVector3& dir, btScalar skin, btVector3& out,
-						 int* exitEllipsoid);
+						 int* exitEllipsoid, bool lastExit = false);
+	bool escapesUnion(const btVector3& p, const btVector3& preferred) const;
 	btScalar minZetaAll(const btVector3& p, int* which) const;
 	btScalar minZetaOver(const int* candidates, int count, const btVector3& p, int* which) const;
 	btScalar nudgeOut(const int* candidates, int count, btVector3& p, const btVector3& fallbackDir) const;

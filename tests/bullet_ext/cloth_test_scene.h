@@ -139,6 +139,17 @@ public:
 		return psb;
 	}
 
+	/// Free nodes (mass 0.01 each, no links) at `positions`, at rest: probes for the collider inside a world.
+	btSoftBody* addNodes(const std::vector<btVector3>& positions)
+	{
+		std::vector<btScalar> masses(positions.size(), btScalar(0.01));
+		btSoftBody* psb = new btSoftBody(&world_.getWorldInfo(), int(positions.size()), positions.data(), masses.data());
+		psb->getCollisionShape()->setMargin(btScalar(0.005));
+		world_.getWorld()->addSoftBody(psb);
+		cloths_.push_back(psb);
+		return psb;
+	}
+
 	btEllipsoidClothCollider* install(const btEllipsoidClothCollider::Config& config = btEllipsoidClothCollider::Config())
 	{
 		collider_ = btEllipsoidClothCollider::install(world_.getWorld(), body_.get(), config);
