@@ -31,8 +31,8 @@ Fits ellipsoids to a body mesh (any format assimp reads) and writes them as JSON
                          feature point (black: head top, hands, feet; white: neck, elbows, knees;
                          magenta: perineum, armpits)
   --no-segmentation      fit the whole mesh as one region (generic path)
-  --no-triangle-cover    skip the triangle cover: the union then encloses every vertex but not every
-                         triangle across an ellipsoid boundary (skin slivers stick out between ellipsoids)
+  --no-triangle-cover    skip the triangle cover: the union then encloses every vertex but not all of
+                         the skin between two ellipsoids (slivers stick out, cloth can rest inside the body)
   -h, --help             this text
 
 E_j is the paper's fitting error: the mean radial distance of an ellipsoid's vertices to its surface.
@@ -78,8 +78,8 @@ void printSummary(const bodyfit::LoadedMesh& loaded, const bodyfit::BodyFit& fit
 	std::cout << "  fit       " << fit.ellipsoids.size() << " ellipsoids, refinement " << bodyfit::toString(fit.status)
 			  << " (" << fit.splitsAccepted << " splits accepted, " << fit.splitsRejected << " rejected)\n";
 	if (fit.timingMs("fitting.cover") > 0.0)
-		std::cout << "  cover     every boundary triangle inside one ellipsoid: " << fit.coverExtraPoints
-				  << " vertices enclosed by a neighbour's ellipsoid, " << fit.coverRounds << " refit round(s)\n";
+		std::cout << "  cover     skin between ellipsoids inside the union: " << fit.coverExtraPoints
+				  << " extra points enclosed (pieces of boundary triangles), " << fit.coverRounds << " refit round(s)\n";
 	else
 		std::cout << "  cover     off (--no-triangle-cover)\n";
 	std::cout << "  threshold mu_torso " << mm(fit.params.muTorso * scale) << ", mu_limbs "

@@ -102,9 +102,9 @@ struct Cluster
 	EllipsoidFit fit;
 	double error = 0.0; ///< E_j
 	bool frozen = false;
-	/// Mesh vertices of other clusters that this ellipsoid also encloses so that every triangle across a cluster
-	/// boundary lies inside one ellipsoid (coverTriangles); in insertion order, after `members` in the MVEE input.
-	std::vector<int> extras;
+	/// Points of triangles across a cluster boundary that this ellipsoid also encloses so that the union covers the
+	/// skin there (coverTriangles); in insertion order, after `members` in the MVEE input.
+	std::vector<Eigen::Vector3d> extras;
 };
 
 /// A set of vertices refined together: the torso (k0 = its parts), or one other region (k0 = 1).
@@ -280,9 +280,9 @@ public:
 		return true;
 	}
 
-	/// Refits cluster c on its members plus its extras (mesh vertices); E_j stays the error over its own members.
+	/// Refits cluster c on its members plus its extra points; E_j stays the error over its own members.
 	/// Extras are only ever appended, so the previous core indices are still valid rows and seed the active set.
-	void refitWithExtras(const Group& g, Cluster& c, const TriMesh& mesh)
+	void refitWithExtras(const Group& g, Cluster& c)
 	{
 		Clock::time_point t0 = Clock::now();
 		const Eigen::Index n = Eigen::Index(c.members.size());
@@ -290,7 +290,7 @@ public:
 		for (Eigen::Index r = 0; r < n; ++r)
 			buffer_.row(r) = g.points.row(c.members[std::size_t(r)]);
 		for (std::size_t e = 0; e < c.extras.size(); ++e)
-			buffer_.row(n + Eigen::Index(e)) = mesh.V.row(c.extras[e]);
+			buffer_.row(n + Eigen::Index(e)) = c.extras[e].transpose();
 		warm_.clear();
 		for (int core : c.fit.coreIndices)
 			if (core >= 0 && core < buffer_.rows())
@@ -363,6 +363,8 @@ void validate(const TriMesh& mesh, const std::vector<Region>& labels, const Body
 		throw InvalidInputError("fitBody: splitAxes must be 1, 2 or 3");
 	if (o.maxSplits < 0 || o.kmeansMaxIterations < 1)
 		throw InvalidInputError("fitBody: maxSplits must be >= 0 and kmeansMaxIterations >= 1");
+	if (o.coverTriangles && !positive(o.coverSpacing))
+		throw InvalidInputError("fitBody: coverSpacing must be finite and > 0");
 	if (!positive(o.minRadiusFraction) || !positive(o.mveeTolerance))
 		throw InvalidInputError("fitBody: minRadiusFraction and mveeTolerance must be finite and > 0");
 	if (!std::isfinite(o.height))
@@ -441,21 +443,27 @@ Region majorityRegion(const Group& g, const Cluster& c, const std::vector<Region
 struct CoverStats
 {
 	int rounds = 0;       ///< refit rounds that added points
-	int extraPoints = 0;  ///< sum of the clusters' extras
-	int uncovered = 0;    ///< triangles still not inside one ellipsoid when the round cap was hit (expected 0)
+	int extraPoints = 0;  ///< sum of the clusters' extra points
+	int uncovered = 0;    ///< pieces not inside one ellipsoid when the round cap was hit (expected 0)
 	double ms = 0.0;
 };
 
-/// Triangle cover (coverTriangles): the clusters partition the vertices, so every ellipsoid encloses its own
-/// vertices and, by convexity, every triangle whose corners are all its own. A triangle whose corners belong to
-/// different clusters can bulge out between two ellipsoids: a sliver of skin outside the union, where cloth then
-/// rests inside the body. Each such triangle that no ellipsoid contains (all three corners at zeta <= 1 + 1e-9) is
-/// given to the corner cluster whose ellipsoid is closest to containing it (smallest max zeta of the corners), that
-/// cluster encloses the missing corners as extras, and its MVEE is refitted. Refits move ellipsoids, so the check
-/// repeats until no triangle is uncovered. Extras only grow and each round adds at least one new (cluster, vertex)
-/// pair, so the loop ends; `maxRounds` is a safety cap only.
-CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner)
+/// Triangle cover (coverTriangles, see body_fitter.h). The clusters partition the vertices, so every ellipsoid
+/// encloses its own vertices and, by convexity, every triangle whose corners are all its own. A triangle whose corners
+/// belong to different clusters can bulge out between two ellipsoids. Every such triangle is cut on a barycentric grid
+/// into pieces whose edges are at most `spacing` (at most kMaxCoverLevel cuts per edge). A piece that no single
+/// ellipsoid contains (all three corners at zeta <= 1 + 1e-9, the MVEE's own enclosure tolerance) goes to the corner
+/// cluster whose ellipsoid comes closest (smallest max zeta of the piece's corners; ties: lower index): its corners
+/// outside that ellipsoid become extra points of the cluster, and the clusters that received points are refitted.
+/// Extra points stay in their cluster's MVEE input, so a piece handed to a cluster stays inside it; refits move
+/// ellipsoids, so the check repeats until every piece lies inside one ellipsoid. Each round adds at least one new
+/// point (a piece whose corners were all enclosed would be contained), so the loop ends; `maxRounds` is a safety cap.
+/// Pieces instead of whole triangles let the ellipsoids grow less (body_fitter.h has the numbers).
+CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner, double spacing)
 {
+	constexpr int kMaxCoverLevel = 64;
+	constexpr double kInside = 1.0 + 1e-9; // the MVEE's own enclosure guarantee (mvee.h)
+	constexpr int maxRounds = 50;
 	const Clock::time_point t0 = Clock::now();
 	CoverStats stats;
 	struct Ref
@@ -472,92 +480,90 @@ CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refin
 			for (int m : groups[gi].clusters[j].members)
 				owner[std::size_t(groups[gi].vertices[std::size_t(m)])] = id;
 		}
-	auto cluster = [&](int id) -> Cluster& { return groups[std::size_t(refs[std::size_t(id)].g)].clusters[std::size_t(refs[std::size_t(id)].j)]; };
+	auto cluster = [&](int id) -> Cluster& {
+		return groups[std::size_t(refs[std::size_t(id)].g)].clusters[std::size_t(refs[std::size_t(id)].j)];
+	};
 
-	// Triangles across a cluster boundary (with all corners fitted).
-	std::vector<int> cross;
+	// The triangles across a cluster boundary (all corners fitted), cut into sub-triangles: a barycentric grid with
+	// the longest edge in pieces no longer than `spacing`. Each piece carries its corners and the clusters of its
+	// triangle's corners (checked first: they usually contain it).
+	struct Piece
+	{
+		std::array<Eigen::Vector3d, 3> p;
+		std::array<int, 3> clusters;
+	};
+	std::vector<Piece> pieces;
 	for (int f = 0; f < mesh.F.rows(); ++f)
 	{
-		const int a = owner[std::size_t(mesh.F(f, 0))], b = owner[std::size_t(mesh.F(f, 1))],
-				  c = owner[std::size_t(mesh.F(f, 2))];
-		if (a >= 0 && b >= 0 && c >= 0 && (a != b || b != c))
-			cross.push_back(f);
+		const std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
+		const std::array<int, 3> c = {owner[std::size_t(v[0])], owner[std::size_t(v[1])], owner[std::size_t(v[2])]};
+		if (c[0] < 0 || c[1] < 0 || c[2] < 0 || (c[0] == c[1] && c[1] == c[2]))
+			continue;
+		const Eigen::Vector3d a = mesh.V.row(v[0]), b = mesh.V.row(v[1]), d = mesh.V.row(v[2]);
+		const double longest = std::max({(b - a).norm(), (d - b).norm(), (a - d).norm()});
+		const int level = std::clamp(int(std::ceil(longest / spacing)), 1, kMaxCoverLevel);
+		auto at = [&](int i, int j) { return Eigen::Vector3d((double(i) * a + double(j) * b + double(level - i - j) * d) / double(level)); };
+		for (int i = 0; i < level; ++i)
+			for (int j = 0; i + j < level; ++j)
+			{
+				pieces.push_back({{at(i, j), at(i + 1, j), at(i, j + 1)}, c});
+				if (i + j + 2 <= level)
+					pieces.push_back({{at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)}, c});
+			}
 	}
 
-	constexpr double kInside = 1.0 + 1e-9; // the MVEE's own enclosure guarantee (mvee.h)
-	constexpr int maxRounds = 50;
 	const int k = int(refs.size());
 	std::vector<Eigen::AlignedBox3d> boxes(refs.size());
-	std::vector<std::vector<int>> add(refs.size());
+	std::vector<char> grew(refs.size(), 0);
 	for (int round = 0;; ++round)
 	{
 		for (int id = 0; id < k; ++id)
 			boxes[std::size_t(id)] = cluster(id).fit.ellipsoid.aabb();
-		bool anyAdded = false;
+		auto maxZeta = [&](int id, const Piece& piece) {
+			const Ellipsoid& e = cluster(id).fit.ellipsoid;
+			return std::max({e.zeta(piece.p[0]), e.zeta(piece.p[1]), e.zeta(piece.p[2])});
+		};
+		auto contains = [&](int id, const Piece& piece) {
+			const Eigen::AlignedBox3d& box = boxes[std::size_t(id)];
+			return box.contains(piece.p[0]) && box.contains(piece.p[1]) && box.contains(piece.p[2]) &&
+				   maxZeta(id, piece) <= kInside;
+		};
 		stats.uncovered = 0;
-		for (int f : cross)
+		std::fill(grew.begin(), grew.end(), 0);
+		for (const Piece& piece : pieces)
 		{
-			const std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
-			const std::array<Eigen::Vector3d, 3> p = {mesh.V.row(v[0]).transpose(), mesh.V.row(v[1]).transpose(),
-													   mesh.V.row(v[2]).transpose()};
-			auto maxZeta = [&](int id) {
-				const Ellipsoid& e = cluster(id).fit.ellipsoid;
-				return std::max({e.zeta(p[0]), e.zeta(p[1]), e.zeta(p[2])});
-			};
-			bool covered = false;
+			bool covered = contains(piece.clusters[0], piece) || contains(piece.clusters[1], piece) ||
+						   contains(piece.clusters[2], piece);
 			for (int id = 0; id < k && !covered; ++id)
-			{
-				const Eigen::AlignedBox3d& box = boxes[std::size_t(id)];
-				covered = box.contains(p[0]) && box.contains(p[1]) && box.contains(p[2]) && maxZeta(id) <= kInside;
-			}
+				covered = contains(id, piece);
 			if (covered)
 				continue;
 			++stats.uncovered;
+			if (round == maxRounds)
+				continue;
 			int best = -1;
 			double bestZeta = 0.0;
-			for (int c = 0; c < 3; ++c)
+			for (int id : piece.clusters)
 			{
-				const int id = owner[std::size_t(v[std::size_t(c)])];
-				const double z = maxZeta(id);
+				const double z = maxZeta(id, piece);
 				if (best < 0 || z < bestZeta || (z == bestZeta && id < best))
 				{
 					best = id;
 					bestZeta = z;
 				}
 			}
-			for (int c = 0; c < 3; ++c)
-				if (owner[std::size_t(v[std::size_t(c)])] != best)
-					add[std::size_t(best)].push_back(v[std::size_t(c)]);
+			Cluster& target = cluster(best);
+			for (const Eigen::Vector3d& q : piece.p)
+				if (!(target.fit.ellipsoid.zeta(q) <= kInside))
+					target.extras.push_back(q);
+			grew[std::size_t(best)] = 1;
 		}
 		if (stats.uncovered == 0 || round == maxRounds)
 			break;
 		for (int id = 0; id < k; ++id)
-		{
-			std::vector<int>& extra = add[std::size_t(id)];
-			if (extra.empty())
-				continue;
-			std::sort(extra.begin(), extra.end());
-			extra.erase(std::unique(extra.begin(), extra.end()), extra.end());
-			Cluster& c = cluster(id);
-			std::vector<int> sortedOld = c.extras;
-			std::sort(sortedOld.begin(), sortedOld.end());
-			bool grew = false;
-			for (int vtx : extra)
-				if (!std::binary_search(sortedOld.begin(), sortedOld.end(), vtx))
-				{
-					c.extras.push_back(vtx);
-					grew = true;
-				}
-			extra.clear();
-			if (grew)
-			{
-				refiner.refitWithExtras(groups[std::size_t(refs[std::size_t(id)].g)], c, mesh);
-				anyAdded = true;
-			}
-		}
+			if (grew[std::size_t(id)])
+				refiner.refitWithExtras(groups[std::size_t(refs[std::size_t(id)].g)], cluster(id));
 		++stats.rounds;
-		if (!anyAdded)
-			break; // every uncovered triangle's corners are already enclosed points: cannot happen, but never spin
 	}
 	for (int id = 0; id < k; ++id)
 		stats.extraPoints += int(cluster(id).extras.size());
@@ -676,13 +682,13 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 	}
 	if (options.coverTriangles)
 	{
-		const CoverStats cover = coverTriangles(mesh, groups, refiner);
+		const CoverStats cover = coverTriangles(mesh, groups, refiner, options.coverSpacing * scale);
 		result.coverRounds = cover.rounds;
 		result.coverExtraPoints = cover.extraPoints;
 		result.setTiming("fitting.cover", cover.ms);
 		if (cover.uncovered > 0)
 			result.warnings.push_back(std::to_string(cover.uncovered) +
-									  " triangle(s) across ellipsoid boundaries are not inside any ellipsoid");
+									  " piece(s) of skin across ellipsoid boundaries are not inside any ellipsoid");
 	}
 	const double fittingMs = msSince(t0);
 
