@@ -65,6 +65,16 @@ inline bool transformsEqual(const btTransform& a, const btTransform& b)
 	return a.getOrigin() == b.getOrigin() && ba[0] == bb[0] && ba[1] == bb[1] && ba[2] == bb[2];
 }
 
+/// Cell index along one axis of a coordinate in cell units, clamped to [0, dim - 1].
+inline int cellIndex(btScalar f, int dim)
+{
+	if (!(f > btScalar(0)))
+		return 0;
+	if (f >= btScalar(dim - 1))
+		return dim - 1;
+	return int(f);
+}
+
 inline bool boxesOverlap(const btVector3& aMin, const btVector3& aMax, const btVector3& bMin, const btVector3& bMax)
 {
 	return !(aMin.x() > bMax.x() || aMax.x() < bMin.x() || aMin.y() > bMax.y() || aMax.y() < bMin.y() ||
@@ -684,17 +694,37 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 	const btVector3 unionMin = cache.getAabbMin();
 	const btVector3 unionMax = cache.getAabbMax();
 	const btEllipsoidWorldCache::Entry* entries = &cache.m_entries[0];
+	const int kPackedStride = btEllipsoidWorldCache::kPackedStride;
+	const btScalar* packed = &cache.m_packed[0];
 	const btVector3* boxes = &cache.m_boxes[0];
 	const int* cellStart = &cache.m_cellStart[0];
 	const int* cellItems = cache.m_cellItems.size() ? &cache.m_cellItems[0] : 0;
-	const int dimX = cache.m_dims[0], dimXY = cache.m_dims[0] * cache.m_dims[1];
+	const int* wideStart = &cache.m_wideStart[0];
+	const int* wideItems = cache.m_wideItems.size() ? &cache.m_wideItems[0] : 0;
+	const int dimX = cache.m_dims[0], dimY = cache.m_dims[1], dimZ = cache.m_dims[2];
+	const int dimXY = dimX * dimY;
+	const btVector3 gridOrigin = cache.m_gridOrigin;
+	const btScalar invCell = cache.m_invCell;
+	const btVector3 skinCells = skinBox * invCell;
 	m_candidates.resize(ne);
-	int* cand = &m_candidates[0];
+	int* candBuffer = &m_candidates[0];
 	m_candidateT.resize(ne);
 	btScalar* tvals = &m_candidateT[0];
 	const bool moving = m_moving;
 	const btTransform delta = m_delta;
-	const btTransform toLocal = cache.getInverseTransform();
+	const btTransform& toLocal = cache.getInverseTransform();
+	// World -> grid units in one affine map: f = (toLocal * p - gridOrigin) / cell.
+	const btTransform toGrid(toLocal.getBasis().scaled(btVector3(invCell, invCell, invCell)),
+							 (toLocal.getOrigin() - gridOrigin) * invCell);
+	// The fast path's containment test runs on body-frame coordinates, whose rounding (the world -> body transform
+	// of a point near the union: a few ulps of the largest coordinate in play) is taken off the dilation; where that
+	// leaves nothing (tiny ellipsoids far from the origin in float) every node takes the general path.
+	btVector3 farCorner = unionMin.absolute();
+	farCorner.setMax(unionMax.absolute());
+	const btScalar farthest = farCorner[farCorner.maxAxis()] + toLocal.getOrigin().absolute()[toLocal.getOrigin().absolute().maxAxis()];
+	const btScalar roundingCells = SIMD_EPSILON * btScalar(16) * farthest * invCell;
+	const btScalar dilation = cache.m_cellDilation - roundingCells;
+	const btScalar wideDilation = cache.m_wideDilation - roundingCells;
 
 	btScalar minZeta = stats.m_minZeta;
 	const int numNodes = softBody->m_nodes.size();
@@ -723,43 +753,83 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 		if (!boxesOverlap(boxMin, boxMax, unionMin, unionMax))
 			continue;
 
-		// Broadphase: the path in the body frame (its box grown by the skin), the grid cells under it, each
-		// ellipsoid once (stamps), then the world box test.
+		// Broadphase in the body frame (the grid's), in cell units f = (p - origin) / cell. The path grown by the
+		// skin lies in the cube of half-size |x - q| / 2 + skin around its midpoint m (a rotation keeps lengths).
+		// Fast path: that cube lies within the grown cell of m's cell (the cell plus the dilation on every side,
+		// less the rounding allowance), so that cell's list holds every ellipsoid the path can meet. Next, the same with the wide lists
+		// (a 3 x 3 x 3 block). Either list is then filtered by the world box test without branches (the outcome is
+		// a coin toss per candidate): two thirds of the listed ellipsoids are dropped for a few compares each.
+		// Otherwise (a node moving about a cell in one substep) every cell under the box, each ellipsoid once.
 		int nc = 0;
+		const int* cand = candBuffer;
 		{
-			const btVector3 lq = toLocal * q, lx = toLocal * x;
-			btVector3 lMin = lx, lMax = lx;
-			lMin.setMin(lq);
-			lMax.setMax(lq);
-			lMin -= skinBox;
-			lMax += skinBox;
-			const int x0 = cache.cellCoord(lMin.x(), 0), x1 = cache.cellCoord(lMax.x(), 0);
-			const int y0 = cache.cellCoord(lMin.y(), 1), y1 = cache.cellCoord(lMax.y(), 1);
-			const int z0 = cache.cellCoord(lMin.z(), 2), z1 = cache.cellCoord(lMax.z(), 2);
-			const bool single = x0 == x1 && y0 == y1 && z0 == z1;
-			for (int cz = z0; cz <= z1; ++cz)
-				for (int cy = y0; cy <= y1; ++cy)
-					for (int cx = x0; cx <= x1; ++cx)
-					{
-						const int c = cz * dimXY + cy * dimX + cx;
-						for (int j = cellStart[c]; j < cellStart[c + 1]; ++j)
+			const btVector3 fm = toGrid * ((x + q) * btScalar(0.5));
+			const int cx = cellIndex(fm.x(), dimX), cy = cellIndex(fm.y(), dimY), cz = cellIndex(fm.z(), dimZ);
+			const btVector3 frac = fm - btVector3(btScalar(cx), btScalar(cy), btScalar(cz));
+			const btScalar faceGap = btMin(btMin(btMin(frac.x(), frac.y()), frac.z()),
+										   btScalar(1) - btMax(btMax(frac.x(), frac.y()), frac.z()));
+			// |x - q| / 2 rounded up a little (the midpoint and the length carry rounding too).
+			const btScalar halfPath = btSqrt((x - q).length2()) * btScalar(0.5 + 1e-5) + skin;
+			const btScalar reach = halfPath * invCell - faceGap;
+			const int c = cz * dimXY + cy * dimX + cx;
+			const int* list = 0;
+			int listSize = -1;
+			if (reach <= dilation)
+			{
+				list = cellItems + cellStart[c];
+				listSize = cellStart[c + 1] - cellStart[c];
+			}
+			else if (reach <= wideDilation)
+			{
+				list = wideItems + wideStart[c];
+				listSize = wideStart[c + 1] - wideStart[c];
+			}
+			if (listSize >= 0)
+			{
+				const btScalar bx0 = boxMin.x(), by0 = boxMin.y(), bz0 = boxMin.z();
+				const btScalar bx1 = boxMax.x(), by1 = boxMax.y(), bz1 = boxMax.z();
+				for (int j = 0; j < listSize; ++j)
+				{
+					const int k = list[j];
+					const btVector3& lo = boxes[2 * k];
+					const btVector3& hi = boxes[2 * k + 1];
+					const bool overlap = (bx0 <= hi.x()) & (bx1 >= lo.x()) & (by0 <= hi.y()) & (by1 >= lo.y()) &
+										 (bz0 <= hi.z()) & (bz1 >= lo.z());
+					candBuffer[nc] = k;
+					nc += overlap ? 1 : 0;
+				}
+			}
+			else
+			{
+				const btVector3 fq = toGrid * q, fx = toGrid * x;
+				btVector3 fMin = fx, fMax = fx;
+				fMin.setMin(fq);
+				fMax.setMax(fq);
+				fMin -= skinCells;
+				fMax += skinCells;
+				const int x0 = cellIndex(fMin.x(), dimX), x1 = cellIndex(fMax.x(), dimX);
+				const int y0 = cellIndex(fMin.y(), dimY), y1 = cellIndex(fMax.y(), dimY);
+				const int z0 = cellIndex(fMin.z(), dimZ), z1 = cellIndex(fMax.z(), dimZ);
+				for (int iz = z0; iz <= z1; ++iz)
+					for (int iy = y0; iy <= y1; ++iy)
+						for (int ix = x0; ix <= x1; ++ix)
 						{
-							const int k = cellItems[j];
-							if (!boxesOverlap(boxMin, boxMax, boxes[2 * k], boxes[2 * k + 1]))
-								continue;
-							if (!single)
+							const int cc = iz * dimXY + iy * dimX + ix;
+							for (int j = cellStart[cc]; j < cellStart[cc + 1]; ++j)
 							{
+								const int k = cellItems[j];
+								if (!boxesOverlap(boxMin, boxMax, boxes[2 * k], boxes[2 * k + 1]))
+									continue;
 								// A box spanning several cells meets an ellipsoid in each: keep the first (the
 								// candidate list is a handful long, a linear scan beats a stamp array here).
 								int m = 0;
-								while (m < nc && cand[m] != k)
+								while (m < nc && candBuffer[m] != k)
 									++m;
-								if (m < nc)
-									continue;
+								if (m == nc)
+									candBuffer[nc++] = k;
 							}
-							cand[nc++] = k;
 						}
-					}
+			}
 		}
 		if (nc == 0)
 			continue;
@@ -772,13 +842,21 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 		btVector3 uBest(0, 0, 0);
 		bool startInside = false;
 		btScalar zMinX = SIMD_INFINITY;
+		const btScalar qx = q.x(), qy = q.y(), qz = q.z(), xx = x.x(), xy = x.y(), xz = x.z();
 		for (int j = 0; j < nc; ++j)
 		{
-			const btEllipsoidWorldCache::Entry& e = entries[cand[j]];
-			const btVector3 ux = e.m_whiten * (x - e.m_center);
-			const btVector3 uq = e.m_whiten * (q - e.m_center);
-			const btScalar zx = ux.length2();
-			const btScalar zq = uq.length2();
+			// Scalar arithmetic on the packed {c, W} record: no horizontal SIMD sums on this hot path.
+			const btScalar* pk = packed + kPackedStride * cand[j];
+			const btScalar dqx = qx - pk[0], dqy = qy - pk[1], dqz = qz - pk[2];
+			const btScalar dxx = xx - pk[0], dxy = xy - pk[1], dxz = xz - pk[2];
+			const btScalar uq0 = pk[3] * dqx + pk[4] * dqy + pk[5] * dqz;
+			const btScalar uq1 = pk[6] * dqx + pk[7] * dqy + pk[8] * dqz;
+			const btScalar uq2 = pk[9] * dqx + pk[10] * dqy + pk[11] * dqz;
+			const btScalar ux0 = pk[3] * dxx + pk[4] * dxy + pk[5] * dxz;
+			const btScalar ux1 = pk[6] * dxx + pk[7] * dxy + pk[8] * dxz;
+			const btScalar ux2 = pk[9] * dxx + pk[10] * dxy + pk[11] * dxz;
+			const btScalar zx = ux0 * ux0 + ux1 * ux1 + ux2 * ux2;
+			const btScalar zq = uq0 * uq0 + uq1 * uq1 + uq2 * uq2;
 			zMinX = btMin(zMinX, zx);
 			tvals[j] = btScalar(2);
 			if (zq < btScalar(1))
@@ -786,12 +864,12 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 				startInside = true;
 				continue;
 			}
-			const btVector3 d = ux - uq;
-			const btScalar b = uq.dot(d);
+			const btScalar d0 = ux0 - uq0, d1 = ux1 - uq1, d2 = ux2 - uq2;
+			const btScalar b = uq0 * d0 + uq1 * d1 + uq2 * d2;
 			btScalar t = btScalar(2);
 			if (b < btScalar(0))
 			{
-				const btScalar a = d.length2();
+				const btScalar a = d0 * d0 + d1 * d1 + d2 * d2;
 				const btScalar c = zq - btScalar(1);
 				const btScalar disc = b * b - a * c;
 				if (disc >= btScalar(0))
@@ -804,7 +882,7 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 			{
 				tBest = t;
 				best = cand[j];
-				uBest = uq + d * t;
+				uBest.setValue(uq0 + d0 * t, uq1 + d1 * t, uq2 + d2 * t);
 			}
 		}
 
@@ -836,10 +914,13 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 		normal.normalize(); // |W^T u| >= 1 / max(a) > 0 for |u| = 1
 		// Entries tied with the earliest one (the path meets a crease, Figure 6 case 1): the skin offset goes along
 		// the sum of their normals, so the answer does not depend on the order of the ellipsoids.
-		const btScalar tieTolerance = kTieDistance / btMax((x - q).length(), kTieDistance);
 		int ties = 0;
 		btVector3 normalSum(0, 0, 0);
+		const btScalar tieTolerance = nc > 1 ? kTieDistance / btMax((x - q).length(), kTieDistance) : btScalar(0);
+		int tied = 0;
 		for (int j = 0; j < nc && nc > 1; ++j)
+			tied += tvals[j] <= tBest + tieTolerance ? 1 : 0;
+		for (int j = 0; j < nc && tied > 1; ++j)
 		{
 			if (!(tvals[j] <= tBest + tieTolerance))
 				continue;

@@ -152,6 +152,12 @@ public:
 	/// Smallest zeta over all entries (uses the grid); SIMD_INFINITY when far from every ellipsoid.
 	btScalar minZeta(const btVector3& worldPoint, int* which = 0) const;
 
+	/// Floats per entry in the packed narrow-phase array: centre (3), then m_whiten by rows (9).
+	enum
+	{
+		kPackedStride = 12
+	};
+
 	/// World -> body frame (the grid's frame).
 	const btTransform& getInverseTransform() const { return m_inverse; }
 
@@ -161,6 +167,7 @@ public:
 private:
 	btAlignedObjectArray<Entry> m_entries;
 	btAlignedObjectArray<btVector3> m_boxes; ///< entry i's world box: [2i] min, [2i+1] max (compact, for the broadphase)
+	btAlignedObjectArray<btScalar> m_packed; ///< entry i's {centre, whitening rows} at [kPackedStride i] (narrow phase)
 	btTransform m_transform;
 	btTransform m_inverse; ///< world -> body frame
 	const btEllipsoidCompoundShape* m_shape;
@@ -175,13 +182,21 @@ private:
 	};
 	btVector3 m_gridOrigin;
 	btScalar m_invCell;
+	btScalar m_cell;
+	/// Each cell lists the ellipsoids that meet the cell grown by this fraction of a cell on every side, so a query
+	/// box that lies within one grown cell needs only that cell's list (no merging of several lists).
+	btScalar m_cellDilation;
+	btScalar m_wideDilation; ///< the same for the wide lists (m_wideStart / m_wideItems)
 	int m_dims[3];
 	btAlignedObjectArray<int> m_cellStart; ///< size cells + 1
 	btAlignedObjectArray<int> m_cellItems;
+	btAlignedObjectArray<int> m_wideStart; ///< wide lists (cells grown by m_wideDilation), CSR like m_cellStart
+	btAlignedObjectArray<int> m_wideItems;
 	mutable btAlignedObjectArray<unsigned> m_stamp;
 	mutable unsigned m_stampCounter;
 
 	void buildGrid();
+	void buildLists(btScalar dilation, btAlignedObjectArray<int>& start, btAlignedObjectArray<int>& items) const;
 	/// Cell index along axis k of a world coordinate, clamped to the grid (NaN and huge values included).
 	int cellCoord(btScalar value, int k) const
 	{
