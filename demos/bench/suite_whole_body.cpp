@@ -8,6 +8,7 @@
 #include "bench/bench_common.h"
 
 #include "bodyfit/body_fitter.h"
+#include "bodyfit/fit_quality.h"
 #include "bodyfit/mesh_io.h"
 #include "bodyfit/segmentation.h"
 
@@ -56,6 +57,7 @@ struct Measured
 	bodyfit::BodyFit fit; ///< with true distances
 	double medianMs = 0.0;
 	double medianCpuMs = 0.0;
+	bodyfit::FitQuality skin; ///< skin outside the union, sampled on the whole surface every 2 mm
 };
 
 Measured measure(const bodyfit_bench::Context& ctx, const bodyfit::TriMesh& mesh,
@@ -66,6 +68,13 @@ Measured measure(const bodyfit_bench::Context& ctx, const bodyfit::TriMesh& mesh
 	options.trueDistance = false;
 	m.medianMs = bodyfit_bench::medianMs(ctx.repeats, [&] { bodyfit::fitBody(mesh, labels, options); });
 	m.medianCpuMs = medianCpuMs(ctx.repeats, [&] { bodyfit::fitBody(mesh, labels, options); });
+	bodyfit::FitQualityOptions q;
+	q.computeAirGap = false;
+	q.computeIoU = false;
+	std::vector<bodyfit::Ellipsoid> ellipsoids;
+	for (const bodyfit::FittedEllipsoid& f : m.fit.ellipsoids)
+		ellipsoids.push_back(f.ellipsoid);
+	m.skin = bodyfit::measureFitQuality(bodyfit::FitQualityReference(mesh, 0), ellipsoids, q);
 	return m;
 }
 
@@ -78,7 +87,8 @@ void addRow(bodyfit_bench::Table& t, const std::string& body, const std::string&
 	t.addRow({body, variant, fmtInt(vertices), fmtInt(int(f.ellipsoids.size())), bodyfit::toString(f.status),
 			  mm(f.meanRadialError()), mm(f.maxRadialError()), mm(f.meanDistance()), mm(f.maxDistance()),
 			  fmt(m.medianMs, 1), fmt(m.medianCpuMs, 1), fmt(f.timingMs("fitting.kmeans"), 1),
-			  fmt(f.timingMs("fitting.mvee"), 1)});
+			  fmt(f.timingMs("fitting.mvee"), 1), fmt(m.skin.skinSurfaceOutsideFraction * 100.0, 2),
+			  fmt(m.skin.skinSurfaceOutsideMax * 1e3, 2)});
 }
 
 int runWholeBody(const bodyfit_bench::Context& ctx)
@@ -87,7 +97,8 @@ int runWholeBody(const bodyfit_bench::Context& ctx)
 	using namespace bodyfit_bench;
 	const std::vector<std::string> header = {"body", "variant", "vertices", "ellipsoids", "status", "mean E mm",
 											 "worst E_j mm", "gap mean mm", "gap max mm", "median fit ms",
-											 "median fit cpu ms", "k-means ms (1 run)", "mvee ms (1 run)"};
+											 "median fit cpu ms", "k-means ms (1 run)", "mvee ms (1 run)",
+											 "skin outside union %", "skin outside max mm"};
 	const BodyFitOptions defaults;
 
 	// 1. The generic path: the whole mesh as one region (bodyfit-fit --no-segmentation), default options.
@@ -119,6 +130,10 @@ int runWholeBody(const bodyfit_bench::Context& ctx)
 		{
 			addRow(variants, name, "segmented (bisecting)", mesh.vertexCount(),
 				   measure(ctx, mesh, seg.labels, defaults));
+			BodyFitOptions noCover = defaults;
+			noCover.coverTriangles = false;
+			addRow(variants, name, "segmented, no triangle cover", mesh.vertexCount(),
+				   measure(ctx, mesh, seg.labels, noCover));
 			BodyFitOptions group = defaults;
 			group.reclusterGroup = true;
 			addRow(variants, name, "segmented (group k-means)", mesh.vertexCount(),

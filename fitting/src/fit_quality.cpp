@@ -387,6 +387,38 @@ FitQuality measureFitQuality(const FitQualityReference& ref, const std::vector<E
 		}
 		q.skinOutsideFraction = mesh.V.rows() > 0 ? double(q.skinOutsideVertices) / double(mesh.V.rows()) : 0.0;
 		q.skinOutsideMean = q.skinOutsideVertices > 0 ? sum / double(q.skinOutsideVertices) : 0.0;
+
+		// The whole skin surface: a barycentric grid on every triangle.
+		if (options.skinSurfaceSpacing > 0.0)
+			for (int f = 0; f < mesh.F.rows(); ++f)
+			{
+				const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)),
+									  c = mesh.V.row(mesh.F(f, 2));
+				const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+				const int level = std::clamp(int(std::ceil(longest / options.skinSurfaceSpacing)), 1, 1000);
+				for (int i = 0; i <= level; ++i)
+					for (int k = 0; i + k <= level; ++k)
+					{
+						const Eigen::Vector3d p =
+							(double(i) * a + double(k) * b + double(level - i - k) * c) / double(level);
+						++q.skinSurfaceSamples;
+						bool outside = true;
+						for (int j = 0; j < n && outside; ++j)
+							if (boxes[size_t(j)].contains(p) &&
+								ellipsoids[size_t(j)].zeta(p) <= 1.0 + options.outsideTolerance)
+								outside = false;
+						if (!outside)
+							continue;
+						double best = std::numeric_limits<double>::infinity();
+						for (int j = 0; j < n; ++j)
+							if (boxDistanceSquared(boxes[size_t(j)], p) < best * best)
+								best = std::min(best, std::abs(closestSurfacePoint(ellipsoids[size_t(j)], p).signedDistance));
+						++q.skinSurfaceOutside;
+						q.skinSurfaceOutsideMax = std::max(q.skinSurfaceOutsideMax, best);
+					}
+			}
+		q.skinSurfaceOutsideFraction =
+			q.skinSurfaceSamples > 0 ? double(q.skinSurfaceOutside) / double(q.skinSurfaceSamples) : 0.0;
 	}
 
 	// ---- voxel IoU on the reference lattice

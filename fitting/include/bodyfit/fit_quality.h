@@ -8,7 +8,8 @@
 ///     point on the closest triangle, uniform grid over the triangles). Samples inside the body mesh (the union dips
 ///     under the skin there) are not air: they are reported as an area fraction instead.
 ///   * skin outside the union: mesh vertices with min_j zeta_j(v) > 1, their fraction and their largest distance to
-///     the union (= the smallest true distance to any ellipsoid, Eberly).
+///     the union (= the smallest true distance to any ellipsoid, Eberly); the same over samples of the whole skin
+///     surface (triangles sampled every skinSurfaceSpacing).
 ///   * voxel IoU of the union against the body interior: voxel centres of a regular grid over both, the body side
 ///     decided by MeshInsideTest (inside_test.h).
 /// Deterministic: same input and options -> same numbers, bit for bit (no randomness, fixed iteration order).
@@ -59,6 +60,10 @@ struct FitQualityOptions
 	/// A vertex counts as outside the union when min_j zeta_j(v) > 1 + outsideTolerance (vertices exactly on an
 	/// ellipsoid surface, as in exact fits, are not reported because of rounding).
 	double outsideTolerance = 1e-9;
+	/// Spacing of the skin samples for the surface version of "skin outside the union" (metres): every triangle is
+	/// sampled on a barycentric grid with its longest edge cut into pieces no longer than this; 0 = skip. Vertices
+	/// alone can miss the slivers of skin that bulge out between two ellipsoids (each vertex is inside its own).
+	double skinSurfaceSpacing = 0.002;
 	bool computeAirGap = true;
 	bool computeSkinOutside = true;
 	bool computeIoU = true;
@@ -83,6 +88,11 @@ struct FitQuality
 	double skinOutsideFraction = 0.0; ///< of all mesh vertices
 	double skinOutsideMax = 0.0;      ///< largest distance of an outside vertex to the union (metres)
 	double skinOutsideMean = 0.0;     ///< mean over the outside vertices (0 when none)
+	long long skinSurfaceSamples = 0;    ///< samples on the triangles (skinSurfaceSpacing; edges shared by two
+										 ///< triangles are sampled by both)
+	long long skinSurfaceOutside = 0;    ///< of those, outside every ellipsoid
+	double skinSurfaceOutsideFraction = 0.0;
+	double skinSurfaceOutsideMax = 0.0;  ///< largest distance of an outside sample to the union (metres)
 
 	// Voxel IoU (union vs body interior); -1 when not computed.
 	double voxelIoU = -1.0;
