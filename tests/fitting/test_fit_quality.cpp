@@ -320,3 +320,35 @@ TEST_CASE("fit_quality: bad input is rejected with a one-line reason", "[fitting
 	CHECK_THROWS_AS(FitQualityReference(m, -1), InvalidInputError);
 	CHECK_THROWS_AS(FitQualityReference(TriMesh{}), InvalidInputError);
 }
+
+TEST_CASE("fit_quality: skin between two ellipsoids is found on the surface, not at the vertices", "[fitting][fit_quality]")
+{
+	// One triangle whose corners are all inside the union of two unit spheres centred at (+-0.9, 0, 0), while the
+	// middle of its top edge, (0, 0.99, 0), is outside both: the sliver the vertex test cannot see.
+	TriMesh m;
+	m.V.resize(3, 3);
+	m.V << -0.9, 0.99, 0.0, 0.9, 0.99, 0.0, 0.0, -0.2, 0.0;
+	m.F.resize(1, 3);
+	m.F << 0, 1, 2;
+	Ellipsoid left, right;
+	left.center = Eigen::Vector3d(-0.9, 0.0, 0.0);
+	right.center = Eigen::Vector3d(0.9, 0.0, 0.0);
+	FitQualityOptions opt;
+	opt.computeAirGap = false;
+	opt.computeIoU = false;
+	opt.skinSurfaceSpacing = 0.1; // 18 pieces on the 1.8 m top edge: its midpoint is a sample
+	const FitQuality q = measureFitQuality(FitQualityReference(m, 0), {left, right}, opt);
+	CHECK(q.skinOutsideVertices == 0);
+	CHECK(q.skinSurfaceSamples == 19 * 20 / 2); // (level + 1)(level + 2) / 2 grid points, level 18
+	CHECK(q.skinSurfaceOutside > 0);
+	CHECK(q.skinSurfaceOutside < q.skinSurfaceSamples);
+	// The farthest point of the edge from both spheres is its midpoint: sqrt(0.9^2 + 0.99^2) - 1 from each centre's
+	// sphere; 1e-12 covers Eberly's solve on a sphere.
+	CHECK(q.skinSurfaceOutsideMax == Approx(std::sqrt(0.81 + 0.9801) - 1.0).margin(1e-12));
+	CHECK(q.skinSurfaceOutsideFraction == Approx(double(q.skinSurfaceOutside) / double(q.skinSurfaceSamples)));
+
+	opt.skinSurfaceSpacing = 0.0; // switched off: vertices only
+	const FitQuality off = measureFitQuality(FitQualityReference(m, 0), {left, right}, opt);
+	CHECK(off.skinSurfaceSamples == 0);
+	CHECK(off.skinSurfaceOutsideMax == 0.0);
+}
