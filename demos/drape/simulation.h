@@ -49,7 +49,7 @@ struct StepStats
 struct ClothSample
 {
 	int insideBody = 0;       ///< nodes inside the real body mesh (ray-parity vote)
-	int insideEllipsoids = -1;///< nodes with zeta < 1 - 1e-6 for some ellipsoid (-1: no ellipsoids)
+	int insideEllipsoids = -1;///< nodes deeper than 1e-6 m inside some ellipsoid (-1: no ellipsoids)
 	double minZeta = 0.0;     ///< smallest zeta over nodes (inf when no ellipsoids)
 	double maxEllipsoidDepth = 0.0; ///< deepest node inside an ellipsoid (metres, Eberly distance; 0 if none)
 	int nanNodes = 0;         ///< nodes with a NaN/Inf coordinate or velocity
