@@ -606,6 +606,8 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 	result.params.maxEllipsoids = options.maxEllipsoids;
 	result.params.minRadius = mvee.minRadius;
 	result.params.reclusterGroup = options.reclusterGroup;
+	result.params.coverTriangles = options.coverTriangles;
+	result.params.coverSpacing = options.coverTriangles ? options.coverSpacing : 0.0;
 
 	// (a) Initial clusters: torso k = number of its parts (means of the parts), every other region k = 1.
 	std::vector<Eigen::MatrixX3d> initialCenters;

@@ -189,7 +189,9 @@ std::string toEllipsoidJson(const BodyFit& fit)
 					 {"sigma", fit.params.sigma},
 					 {"max_ellipsoids", fit.params.maxEllipsoids},
 					 {"min_radius", fit.params.minRadius},
-					 {"recluster_group", fit.params.reclusterGroup}};
+					 {"recluster_group", fit.params.reclusterGroup},
+					 {"cover_triangles", fit.params.coverTriangles},
+					 {"cover_spacing", fit.params.coverSpacing}};
 	Json list = Json::array();
 	for (const FittedEllipsoid& f : fit.ellipsoids)
 	{
@@ -297,6 +299,10 @@ BodyFit parseEllipsoidJson(const std::string& text, const std::string& name)
 			fit.params.minRadius = r.nonNegative(p["min_radius"], "params.min_radius");
 		if (p.contains("recluster_group"))
 			fit.params.reclusterGroup = r.boolean(p["recluster_group"], "params.recluster_group");
+		if (p.contains("cover_triangles"))
+			fit.params.coverTriangles = r.boolean(p["cover_triangles"], "params.cover_triangles");
+		if (p.contains("cover_spacing"))
+			fit.params.coverSpacing = r.nonNegative(p["cover_spacing"], "params.cover_spacing");
 	}
 
 	const Json& list = r.require(doc, "ellipsoids", "");

@@ -23,7 +23,7 @@ BodyFit sampleFit()
 	std::uniform_real_distribution<double> u(0.0, 1.0);
 	BodyFit fit;
 	fit.source = {"male_young.obj", 13380, 1.74813};
-	fit.params = {0.006, 0.004, true, 0.001, 128, 0.0034962, true};
+	fit.params = {0.006, 0.004, true, 0.001, 128, 0.0034962, true, true, 0.0031234567890123};
 	const Region regions[] = {Region::Head, Region::TorsoUpperLeft, Region::ArmLowerRight, Region::Whole};
 	for (int i = 0; i < 4; ++i)
 	{
@@ -106,6 +106,8 @@ TEST_CASE("ellipsoid_io: JSON round trip is bit-exact", "[fitting][ellipsoid_io]
 	CHECK(back.params.minRadius == fit.params.minRadius);
 	CHECK(back.params.relativeToHeight == fit.params.relativeToHeight);
 	CHECK(back.params.reclusterGroup == fit.params.reclusterGroup);
+	CHECK(back.params.coverTriangles == fit.params.coverTriangles);
+	CHECK(back.params.coverSpacing == fit.params.coverSpacing);
 	REQUIRE(back.timings.size() == 2);
 	CHECK(back.timings[0].stage == "load");
 	CHECK(back.timings[1].ms == fit.timings[1].ms);

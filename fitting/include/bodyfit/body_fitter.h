@@ -111,6 +111,8 @@ struct BodyFitParams
 	int maxEllipsoids = 0;
 	double minRadius = 0.0; ///< metres
 	bool reclusterGroup = false;
+	bool coverTriangles = false; ///< the triangle cover ran (the union contains the whole skin surface)
+	double coverSpacing = 0.0;   ///< its piece size, in the units of the thresholds (0 when it did not run)
 };
 
 struct SourceInfo

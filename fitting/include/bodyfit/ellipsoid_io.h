@@ -4,7 +4,8 @@
 /// written, and export of the ellipsoids as a triangle mesh for viewers.
 ///
 /// Written fields: format, version, units ("m"), up ("+y"), source {mesh, vertices, height},
-/// params {mu_torso, mu_limbs, relative_to_height, sigma, max_ellipsoids, min_radius, recluster_group},
+/// params {mu_torso, mu_limbs, relative_to_height, sigma, max_ellipsoids, min_radius, recluster_group,
+/// cover_triangles, cover_spacing},
 /// ellipsoids [{region, center [x,y,z], rotation [w,x,y,z] (unit quaternion, w >= 0), axes [a,b,c] (semi-axes,
 /// metres, along the rotation's x, y, z columns), radial_error, max_radial_error, mean_distance, max_distance,
 /// vertices}], timing_ms {stage: ms, ...}, stats {count, mean_radial_error, max_radial_error, mean_distance,
