@@ -505,12 +505,19 @@ btScalar btEllipsoidClothCollider::minZetaAll(const btVector3& p, int* which) co
 
 btScalar btEllipsoidClothCollider::minZetaOver(const int* candidates, int count, const btVector3& p, int* which) const
 {
+	// The packed {c, W} records, same arithmetic as (W (p - c)).length2().
+	const btScalar* packed = &m_current.m_packed[0];
+	const btScalar px = p.x(), py = p.y(), pz = p.z();
 	btScalar best = SIMD_INFINITY;
 	int bestIndex = -1;
 	for (int j = 0; j < count; ++j)
 	{
-		const btEllipsoidWorldCache::Entry& e = m_current[candidates[j]];
-		const btScalar z = (e.m_whiten * (p - e.m_center)).length2();
+		const btScalar* pk = packed + btEllipsoidWorldCache::kPackedStride * candidates[j];
+		const btScalar dx = px - pk[0], dy = py - pk[1], dz = pz - pk[2];
+		const btScalar u0 = pk[3] * dx + pk[4] * dy + pk[5] * dz;
+		const btScalar u1 = pk[6] * dx + pk[7] * dy + pk[8] * dz;
+		const btScalar u2 = pk[9] * dx + pk[10] * dy + pk[11] * dz;
+		const btScalar z = u0 * u0 + u1 * u1 + u2 * u2;
 		if (z < best)
 		{
 			best = z;
@@ -716,6 +723,10 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 	// World -> grid units in one affine map: f = (toLocal * p - gridOrigin) / cell.
 	const btTransform toGrid(toLocal.getBasis().scaled(btVector3(invCell, invCell, invCell)),
 							 (toLocal.getOrigin() - gridOrigin) * invCell);
+	// A body without rotation (the common static case) needs no matrix product: f = (p - (o - t)) / cell, the same
+	// value up to rounding, which the allowance below covers.
+	const bool axisAligned = toLocal.getBasis() == btMatrix3x3::getIdentity();
+	const btVector3 gridShift = gridOrigin - toLocal.getOrigin();
 	// The fast path's containment test runs on body-frame coordinates, whose rounding (the world -> body transform
 	// of a point near the union: a few ulps of the largest coordinate in play) is taken off the dilation; where that
 	// leaves nothing (tiny ellipsoids far from the origin in float) every node takes the general path.
@@ -763,7 +774,8 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 		int nc = 0;
 		const int* cand = candBuffer;
 		{
-			const btVector3 fm = toGrid * ((x + q) * btScalar(0.5));
+			const btVector3 mid = (x + q) * btScalar(0.5);
+			const btVector3 fm = axisAligned ? (mid - gridShift) * invCell : toGrid * mid;
 			const int cx = cellIndex(fm.x(), dimX), cy = cellIndex(fm.y(), dimY), cz = cellIndex(fm.z(), dimZ);
 			const btVector3 frac = fm - btVector3(btScalar(cx), btScalar(cy), btScalar(cz));
 			const btScalar faceGap = btMin(btMin(btMin(frac.x(), frac.y()), frac.z()),
