@@ -822,25 +822,52 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 				const int x0 = cellIndex(fMin.x(), dimX), x1 = cellIndex(fMax.x(), dimX);
 				const int y0 = cellIndex(fMin.y(), dimY), y1 = cellIndex(fMax.y(), dimY);
 				const int z0 = cellIndex(fMin.z(), dimZ), z1 = cellIndex(fMax.z(), dimZ);
-				for (int iz = z0; iz <= z1; ++iz)
+				// A long path (a corner of the cloth whipping) spans many cells whose lists repeat the same few
+				// ellipsoids: when they hold more entries than there are ellipsoids, every ellipsoid's box is
+				// tested once instead (no duplicates to remove).
+				int listed = 0;
+				for (int iz = z0; iz <= z1 && listed < ne; ++iz)
 					for (int iy = y0; iy <= y1; ++iy)
-						for (int ix = x0; ix <= x1; ++ix)
-						{
-							const int cc = iz * dimXY + iy * dimX + ix;
-							for (int j = cellStart[cc]; j < cellStart[cc + 1]; ++j)
+					{
+						const int row = iz * dimXY + iy * dimX;
+						listed += cellStart[row + x1 + 1] - cellStart[row + x0];
+					}
+				if (listed >= ne)
+				{
+					const btScalar bx0 = boxMin.x(), by0 = boxMin.y(), bz0 = boxMin.z();
+					const btScalar bx1 = boxMax.x(), by1 = boxMax.y(), bz1 = boxMax.z();
+					for (int k = 0; k < ne; ++k)
+					{
+						const btVector3& lo = boxes[2 * k];
+						const btVector3& hi = boxes[2 * k + 1];
+						const bool overlap = (bx0 <= hi.x()) & (bx1 >= lo.x()) & (by0 <= hi.y()) & (by1 >= lo.y()) &
+											 (bz0 <= hi.z()) & (bz1 >= lo.z());
+						candBuffer[nc] = k;
+						nc += overlap ? 1 : 0;
+					}
+				}
+				else
+				{
+					for (int iz = z0; iz <= z1; ++iz)
+						for (int iy = y0; iy <= y1; ++iy)
+							for (int ix = x0; ix <= x1; ++ix)
 							{
-								const int k = cellItems[j];
-								if (!boxesOverlap(boxMin, boxMax, boxes[2 * k], boxes[2 * k + 1]))
-									continue;
-								// A box spanning several cells meets an ellipsoid in each: keep the first (the
-								// candidate list is a handful long, a linear scan beats a stamp array here).
-								int m = 0;
-								while (m < nc && candBuffer[m] != k)
-									++m;
-								if (m == nc)
-									candBuffer[nc++] = k;
+								const int cc = iz * dimXY + iy * dimX + ix;
+								for (int j = cellStart[cc]; j < cellStart[cc + 1]; ++j)
+								{
+									const int k = cellItems[j];
+									if (!boxesOverlap(boxMin, boxMax, boxes[2 * k], boxes[2 * k + 1]))
+										continue;
+									// A box spanning several cells meets an ellipsoid in each: keep the first (the
+									// candidate list is a handful long, a linear scan beats a stamp array here).
+									int m = 0;
+									while (m < nc && candBuffer[m] != k)
+										++m;
+									if (m == nc)
+										candBuffer[nc++] = k;
+								}
 							}
-						}
+				}
 			}
 		}
 		if (nc == 0)
