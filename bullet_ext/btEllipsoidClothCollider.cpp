@@ -68,11 +68,8 @@ inline bool transformsEqual(const btTransform& a, const btTransform& b)
 /// Cell index along one axis of a coordinate in cell units, clamped to [0, dim - 1].
 inline int cellIndex(btScalar f, int dim)
 {
-	if (!(f > btScalar(0)))
-		return 0;
-	if (f >= btScalar(dim - 1))
-		return dim - 1;
-	return int(f);
+	// Clamped in floating point (max, min: no branches), then truncated; f is finite here.
+	return int(btMin(btMax(f, btScalar(0)), btScalar(dim - 1)));
 }
 
 inline bool boxesOverlap(const btVector3& aMin, const btVector3& aMax, const btVector3& bMin, const btVector3& bMax)
