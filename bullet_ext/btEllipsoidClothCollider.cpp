@@ -15,6 +15,11 @@ point nearest the start position wins (which removes the paper's Figure 6 cases 
 
 #include <new>
 
+#if defined(__SSE__) && !defined(BT_USE_DOUBLE_PRECISION)
+#include <xmmintrin.h>
+#define BT_ELLIPSOID_SSE_BOXES 1 ///< float build on x86: SSE for the box filter and the whitening products
+#endif
+
 #if defined(__unix__) || defined(__APPLE__)
 #include <time.h>
 #endif
@@ -71,6 +76,36 @@ inline int cellIndex(btScalar f, int dim)
 	// Clamped in floating point (max, min: no branches), then truncated; f is finite here.
 	return int(btMin(btMax(f, btScalar(0)), btScalar(dim - 1)));
 }
+
+/// A node's path box for the branch-free world box filter: overlaps(box) is exactly the closed-interval overlap test
+/// on x, y and z (four lanes compared at once where SSE is available, the fourth ignored).
+struct btPathBox
+{
+#ifdef BT_ELLIPSOID_SSE_BOXES
+	__m128 m_min, m_max;
+	btPathBox(const btVector3& mn, const btVector3& mx)
+		: m_min(_mm_setr_ps(mn.x(), mn.y(), mn.z(), btScalar(0))), m_max(_mm_setr_ps(mx.x(), mx.y(), mx.z(), btScalar(0)))
+	{
+	}
+	bool overlaps(const btVector3& lo, const btVector3& hi) const
+	{
+		const __m128 a = _mm_cmple_ps(m_min, _mm_loadu_ps(&hi.x()));
+		const __m128 b = _mm_cmpge_ps(m_max, _mm_loadu_ps(&lo.x()));
+		return (_mm_movemask_ps(_mm_and_ps(a, b)) & 7) == 7;
+	}
+#else
+	btScalar m_x0, m_y0, m_z0, m_x1, m_y1, m_z1;
+	btPathBox(const btVector3& mn, const btVector3& mx)
+		: m_x0(mn.x()), m_y0(mn.y()), m_z0(mn.z()), m_x1(mx.x()), m_y1(mx.y()), m_z1(mx.z())
+	{
+	}
+	bool overlaps(const btVector3& lo, const btVector3& hi) const
+	{
+		return (m_x0 <= hi.x()) & (m_x1 >= lo.x()) & (m_y0 <= hi.y()) & (m_y1 >= lo.y()) & (m_z0 <= hi.z()) &
+			   (m_z1 >= lo.z());
+	}
+#endif
+};
 
 inline bool boxesOverlap(const btVector3& aMin, const btVector3& aMax, const btVector3& bMin, const btVector3& bMax)
 {
@@ -511,9 +546,9 @@ btScalar btEllipsoidClothCollider::minZetaOver(const int* candidates, int count,
 	{
 		const btScalar* pk = packed + btEllipsoidWorldCache::kPackedStride * candidates[j];
 		const btScalar dx = px - pk[0], dy = py - pk[1], dz = pz - pk[2];
-		const btScalar u0 = pk[3] * dx + pk[4] * dy + pk[5] * dz;
-		const btScalar u1 = pk[6] * dx + pk[7] * dy + pk[8] * dz;
-		const btScalar u2 = pk[9] * dx + pk[10] * dy + pk[11] * dz;
+		const btScalar u0 = pk[4] * dx + pk[8] * dy + pk[12] * dz;
+		const btScalar u1 = pk[5] * dx + pk[9] * dy + pk[13] * dz;
+		const btScalar u2 = pk[6] * dx + pk[10] * dy + pk[14] * dz;
 		const btScalar z = u0 * u0 + u1 * u1 + u2 * u2;
 		if (z < best)
 		{
@@ -795,17 +830,12 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 			}
 			if (listSize >= 0)
 			{
-				const btScalar bx0 = boxMin.x(), by0 = boxMin.y(), bz0 = boxMin.z();
-				const btScalar bx1 = boxMax.x(), by1 = boxMax.y(), bz1 = boxMax.z();
+				const btPathBox pathBox(boxMin, boxMax);
 				for (int j = 0; j < listSize; ++j)
 				{
 					const int k = list[j];
-					const btVector3& lo = boxes[2 * k];
-					const btVector3& hi = boxes[2 * k + 1];
-					const bool overlap = (bx0 <= hi.x()) & (bx1 >= lo.x()) & (by0 <= hi.y()) & (by1 >= lo.y()) &
-										 (bz0 <= hi.z()) & (bz1 >= lo.z());
 					candBuffer[nc] = k;
-					nc += overlap ? 1 : 0;
+					nc += pathBox.overlaps(boxes[2 * k], boxes[2 * k + 1]) ? 1 : 0;
 				}
 			}
 			else
@@ -831,16 +861,11 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 					}
 				if (listed >= ne)
 				{
-					const btScalar bx0 = boxMin.x(), by0 = boxMin.y(), bz0 = boxMin.z();
-					const btScalar bx1 = boxMax.x(), by1 = boxMax.y(), bz1 = boxMax.z();
+					const btPathBox pathBox(boxMin, boxMax);
 					for (int k = 0; k < ne; ++k)
 					{
-						const btVector3& lo = boxes[2 * k];
-						const btVector3& hi = boxes[2 * k + 1];
-						const bool overlap = (bx0 <= hi.x()) & (bx1 >= lo.x()) & (by0 <= hi.y()) & (by1 >= lo.y()) &
-											 (bz0 <= hi.z()) & (bz1 >= lo.z());
 						candBuffer[nc] = k;
-						nc += overlap ? 1 : 0;
+						nc += pathBox.overlaps(boxes[2 * k], boxes[2 * k + 1]) ? 1 : 0;
 					}
 				}
 				else
@@ -879,18 +904,39 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 		bool startInside = false;
 		btScalar zMinX = SIMD_INFINITY;
 		const btScalar qx = q.x(), qy = q.y(), qz = q.z(), xx = x.x(), xy = x.y(), xz = x.z();
+#ifdef BT_ELLIPSOID_SSE_BOXES
+		const __m128 qVec = _mm_setr_ps(qx, qy, qz, btScalar(0)), xVec = _mm_setr_ps(xx, xy, xz, btScalar(0));
+#endif
 		for (int j = 0; j < nc; ++j)
 		{
 			// Scalar arithmetic on the packed {c, W} record: no horizontal SIMD sums on this hot path.
 			const btScalar* pk = packed + kPackedStride * cand[j];
+#ifdef BT_ELLIPSOID_SSE_BOXES
+			// Four lanes at once, each lane the same products and sums in the same order as the scalar code below.
+			const __m128 centre = _mm_loadu_ps(pk);
+			const __m128 col0 = _mm_loadu_ps(pk + 4), col1 = _mm_loadu_ps(pk + 8), col2 = _mm_loadu_ps(pk + 12);
+			const __m128 dq = _mm_sub_ps(qVec, centre), dx = _mm_sub_ps(xVec, centre);
+			const __m128 uqv = _mm_add_ps(_mm_add_ps(_mm_mul_ps(col0, _mm_shuffle_ps(dq, dq, _MM_SHUFFLE(0, 0, 0, 0))),
+													 _mm_mul_ps(col1, _mm_shuffle_ps(dq, dq, _MM_SHUFFLE(1, 1, 1, 1)))),
+										  _mm_mul_ps(col2, _mm_shuffle_ps(dq, dq, _MM_SHUFFLE(2, 2, 2, 2))));
+			const __m128 uxv = _mm_add_ps(_mm_add_ps(_mm_mul_ps(col0, _mm_shuffle_ps(dx, dx, _MM_SHUFFLE(0, 0, 0, 0))),
+													 _mm_mul_ps(col1, _mm_shuffle_ps(dx, dx, _MM_SHUFFLE(1, 1, 1, 1)))),
+										  _mm_mul_ps(col2, _mm_shuffle_ps(dx, dx, _MM_SHUFFLE(2, 2, 2, 2))));
+			float uqs[4], uxs[4];
+			_mm_storeu_ps(uqs, uqv);
+			_mm_storeu_ps(uxs, uxv);
+			const btScalar uq0 = uqs[0], uq1 = uqs[1], uq2 = uqs[2];
+			const btScalar ux0 = uxs[0], ux1 = uxs[1], ux2 = uxs[2];
+#else
 			const btScalar dqx = qx - pk[0], dqy = qy - pk[1], dqz = qz - pk[2];
 			const btScalar dxx = xx - pk[0], dxy = xy - pk[1], dxz = xz - pk[2];
-			const btScalar uq0 = pk[3] * dqx + pk[4] * dqy + pk[5] * dqz;
-			const btScalar uq1 = pk[6] * dqx + pk[7] * dqy + pk[8] * dqz;
-			const btScalar uq2 = pk[9] * dqx + pk[10] * dqy + pk[11] * dqz;
-			const btScalar ux0 = pk[3] * dxx + pk[4] * dxy + pk[5] * dxz;
-			const btScalar ux1 = pk[6] * dxx + pk[7] * dxy + pk[8] * dxz;
-			const btScalar ux2 = pk[9] * dxx + pk[10] * dxy + pk[11] * dxz;
+			const btScalar uq0 = pk[4] * dqx + pk[8] * dqy + pk[12] * dqz;
+			const btScalar uq1 = pk[5] * dqx + pk[9] * dqy + pk[13] * dqz;
+			const btScalar uq2 = pk[6] * dqx + pk[10] * dqy + pk[14] * dqz;
+			const btScalar ux0 = pk[4] * dxx + pk[8] * dxy + pk[12] * dxz;
+			const btScalar ux1 = pk[5] * dxx + pk[9] * dxy + pk[13] * dxz;
+			const btScalar ux2 = pk[6] * dxx + pk[10] * dxy + pk[14] * dxz;
+#endif
 			const btScalar zx = ux0 * ux0 + ux1 * ux1 + ux2 * ux2;
 			const btScalar zq = uq0 * uq0 + uq1 * uq1 + uq2 * uq2;
 			zMinX = btMin(zMinX, zx);

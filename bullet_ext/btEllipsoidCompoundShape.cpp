@@ -297,10 +297,10 @@ bool btEllipsoidWorldCache::update(const btEllipsoidCompoundShape* shape, const 
 		for (int k = 0; k < 3; ++k)
 		{
 			pk[k] = w.m_center[k];
-			pk[3 + 3 * k] = w.m_whiten[k].x();
-			pk[4 + 3 * k] = w.m_whiten[k].y();
-			pk[5 + 3 * k] = w.m_whiten[k].z();
+			for (int j = 0; j < 3; ++j)
+				pk[4 + 4 * j + k] = w.m_whiten[k][j];
 		}
+		pk[3] = pk[7] = pk[11] = pk[15] = btScalar(0);
 		if (i == 0)
 		{
 			m_aabbMin = w.m_aabbMin;

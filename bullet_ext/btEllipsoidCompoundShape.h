@@ -152,10 +152,11 @@ public:
 	/// Smallest zeta over all entries (uses the grid); SIMD_INFINITY when far from every ellipsoid.
 	btScalar minZeta(const btVector3& worldPoint, int* which = 0) const;
 
-	/// Floats per entry in the packed narrow-phase array: centre (3), then m_whiten by rows (9).
+	/// Floats per entry in the packed narrow-phase array, four blocks of four: the centre, then the columns of
+	/// m_whiten (element (i, j) at 4 + 4 j + i); the fourth float of each block is 0.
 	enum
 	{
-		kPackedStride = 12
+		kPackedStride = 16
 	};
 
 	/// World -> body frame (the grid's frame).
