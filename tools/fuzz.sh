@@ -59,7 +59,12 @@ for t in "${TARGETS[@]}"; do
 	runs=$(grep -Eo 'stat::number_of_executed_units: *[0-9]+' "$log" | grep -Eo '[0-9]+$' || echo "?")
 	cov=$(grep -Eo 'cov: [0-9]+' "$log" | tail -n 1 || true)
 	echo "$t: exit $rc, $runs executions, $cov, corpus $(ls "$BUILD/fuzz-corpus/$t" | wc -l) files"
-	if [ $rc -ne 0 ]; then
+	if [ $rc -eq 70 ] && [ "$t" = fuzz_mesh_file ]; then
+		# libFuzzer timeout (exit 70) inside assimp's importers under ASan: assimp parses some garbled files very
+		# slowly (a 2026-11-22 CI run hit one at 26 s). Reported with the input kept, not a CI failure; crashes,
+		# sanitizer reports and leaks still fail. See docs/ROBUSTNESS.md section 4.
+		echo "$t: WARNING, slow input (timeout) kept in $art"
+	elif [ $rc -ne 0 ]; then
 		status=1
 		echo "$t: FAILED, input(s) in $art"; grep -E "ERROR|SUMMARY|runtime error" "$log" | head -5
 	fi
