@@ -1,14 +1,16 @@
-// bodyfit-drape: runs a drape scene headless (DESIGN.md sec. 6).
+// bodyfit-drape: runs a drape scene headless (docs/DESIGN.md, "bodyfit-drape").
 //   bodyfit-drape SCENE.json [--body MESH] [--ellipsoids FIT.json] [--collider KIND] [--steps N]
 //                 [--frames DIR] [--metrics OUT.json] [--png OUT.png] [--show body|ellipsoids]
 // Exit status: 0 success, 2 bad input (one-line reason on stderr), 1 failure while running or writing.
 
-#include "offscreen_renderer.h"
-#include "scene.h"
-#include "simulation.h"
+#ifdef BODYFIT_HAVE_RENDER
+#include "render/offscreen_renderer.h"
+#endif
+#include "bodyfit/drape/scene.h"
+#include "bodyfit/drape/simulation.h"
 
-#include "bodyfit/errors.h"
-#include "bodyfit/mesh_io.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
 
 #include <chrono>
 #include <cstdio>
@@ -102,9 +104,14 @@ Args parseArgs(int argc, char** argv)
 	}
 	if (a.scene.empty())
 		badInput("missing SCENE.json (see --help)");
+#ifndef BODYFIT_HAVE_RENDER
+	if (!a.png.empty())
+		badInput("--png: this build has no renderer (OSMesa and libpng were not found when it was configured)");
+#endif
 	return a;
 }
 
+#ifdef BODYFIT_HAVE_RENDER
 bodyfit::render::DrawMesh toDraw(const bodyfit::TriMesh& m, const Eigen::Vector3f& color, bool twoSided)
 {
 	bodyfit::render::DrawMesh d;
@@ -114,6 +121,7 @@ bodyfit::render::DrawMesh toDraw(const bodyfit::TriMesh& m, const Eigen::Vector3
 	d.twoSided = twoSided;
 	return d;
 }
+#endif
 
 void writeFrame(const std::string& dir, const bodyfit::drape::DrapeSimulation& sim, nlohmann::json& index)
 {
@@ -235,6 +243,7 @@ int main(int argc, char** argv)
 				throw std::runtime_error(args.frames + "/frames.json: write failed");
 			std::cout << "frames     " << frameIndex["frames"].size() << " OBJ files in " << args.frames << "\n";
 		}
+#ifdef BODYFIT_HAVE_RENDER
 		if (!args.png.empty())
 		{
 			std::vector<render::DrawMesh> meshes;
@@ -255,6 +264,7 @@ int main(int argc, char** argv)
 			render::writePng(args.png, render::renderTwoViews(meshes, ro));
 			std::cout << "picture    " << args.png << " (" << ro.width << "x" << ro.height << ", front | side)\n";
 		}
+#endif
 	}
 	catch (const std::exception& e)
 	{

@@ -1,8 +1,8 @@
 // bodyfit-fit: fit ellipsoids to a body mesh and write them as JSON (DESIGN.md sec. 6).
-#include "bodyfit/body_fitter.h"
-#include "bodyfit/ellipsoid_io.h"
-#include "bodyfit/mesh_io.h"
-#include "bodyfit/segmentation.h"
+#include "bodyfit/fitting/body_fitter.h"
+#include "bodyfit/fitting/ellipsoid_io.h"
+#include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/segmentation.h"
 #include "common/cli.h"
 
 #include <chrono>

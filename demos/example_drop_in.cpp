@@ -3,8 +3,8 @@
 // Loads a fitted body (bodyfit-fit output; default: the bundled female_young fit), makes it a static body of an
 // existing btSoftRigidDynamicsWorld, drops a cloth patch on it and prints what the collider did.
 // The only changes to a stock Bullet scene are marked "bodyfit".
-#include "bridge/btBodyFitToBullet.h" // bodyfit: JSON -> btEllipsoidCompoundShape
-#include "btEllipsoidClothCollider.h" // bodyfit: the collider and its soft-body solver
+#include "bodyfit/bridge/btBodyFitToBullet.h" // bodyfit: JSON -> btEllipsoidCompoundShape
+#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h" // bodyfit: the collider and its soft-body solver
 
 #include "BulletSoftBody/btSoftBodyHelpers.h"
 #include "BulletSoftBody/btSoftBodyRigidBodyCollisionConfiguration.h"

@@ -1,8 +1,8 @@
 // libFuzzer target: the ellipsoid-set JSON reader (bodyfit::parseEllipsoidJson). Any input must either parse into
 // a valid set (finite centres, proper rotations, positive axes) or raise bodyfit::FormatError; any other exception,
 // crash or sanitizer report is a finding.
-#include "bodyfit/ellipsoid_io.h"
-#include "bodyfit/errors.h"
+#include "bodyfit/fitting/ellipsoid_io.h"
+#include "bodyfit/fitting/errors.h"
 
 #include <cmath>
 #include <cstdint>

@@ -2,8 +2,8 @@
 // The first byte picks the file extension (so assimp's format detection by name is exercised for every importer we
 // care about), the rest is the file content, written to a per-process temporary file. Any input must load into a
 // usable mesh or raise MeshLoadError / InvalidInputError.
-#include "bodyfit/errors.h"
-#include "bodyfit/mesh_io.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
 
 #include <unistd.h>
 

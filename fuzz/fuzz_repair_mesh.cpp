@@ -4,9 +4,9 @@
 // (NaN, Inf, denormals, 1e300) with small integers on a grid (exact duplicates, collinear and coplanar sets).
 // Any input must be repaired into a usable mesh or raise InvalidInputError, and the MVEE of a usable mesh must be
 // finite and enclose every vertex.
-#include "bodyfit/errors.h"
-#include "bodyfit/mesh_io.h"
-#include "bodyfit/mvee.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/mvee.h"
 
 #include <cmath>
 #include <cstdint>

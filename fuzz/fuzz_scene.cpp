@@ -2,9 +2,9 @@
 // JSON are dropped (nlohmann's parser is not ours); every document must parse into a Scene or raise
 // bodyfit::FormatError naming the key. The scene path is a fixed name in the test data directory's parent, so
 // relative body and garment paths resolve to files that may or may not exist.
-#include "scene.h"
+#include "bodyfit/drape/scene.h"
 
-#include "bodyfit/errors.h"
+#include "bodyfit/fitting/errors.h"
 
 #include <nlohmann/json.hpp>
 

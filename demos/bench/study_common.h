@@ -6,13 +6,13 @@
 
 #include "bench/bench_common.h"
 
-#include "bodyfit/body_fitter.h"
-#include "bodyfit/errors.h"
-#include "bodyfit/mesh_io.h"
-#include "bodyfit/segmentation.h"
+#include "bodyfit/fitting/body_fitter.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/segmentation.h"
 
-#include "scene.h"
-#include "simulation.h"
+#include "bodyfit/drape/scene.h"
+#include "bodyfit/drape/simulation.h"
 
 #include <BulletSoftBody/btSoftBody.h>
 

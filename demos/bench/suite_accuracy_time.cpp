@@ -6,7 +6,7 @@
 // garment-resolution, body-resolution and colliders suites: on this drop it costs minutes per body.)
 #include "bench/study_common.h"
 
-#include "bodyfit/fit_quality.h"
+#include "bodyfit/fitting/fit_quality.h"
 
 namespace
 {

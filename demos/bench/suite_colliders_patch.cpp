@@ -10,14 +10,14 @@
 // Reported: medians over the steps, nodes inside at the end and at worst, NaN nodes, mean gap of resting nodes.
 #include "bench/bench_common.h"
 
-#include "bodyfit/body_fitter.h"
-#include "bodyfit/ellipsoid_io.h"
-#include "bodyfit/inside_test.h"
-#include "bodyfit/mesh_io.h"
-#include "bodyfit/segmentation.h"
+#include "bodyfit/fitting/body_fitter.h"
+#include "bodyfit/fitting/ellipsoid_io.h"
+#include "bodyfit/fitting/inside_test.h"
+#include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/segmentation.h"
 
-#include "bridge/btBodyFitToBullet.h"
-#include "btEllipsoidClothCollider.h"
+#include "bodyfit/bridge/btBodyFitToBullet.h"
+#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 
 #include "BulletCollision/BroadphaseCollision/btDbvtBroadphase.h"
 #include "BulletCollision/CollisionDispatch/btCollisionDispatcher.h"

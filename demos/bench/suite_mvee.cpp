@@ -5,9 +5,9 @@
 // run's own core set.
 #include "bench/bench_common.h"
 
-#include "bodyfit/errors.h"
-#include "bodyfit/mesh_io.h"
-#include "bodyfit/mvee.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/mvee.h"
 
 #include <Eigen/Geometry>
 

@@ -4,7 +4,7 @@
 // figures (mean radial error, air gap, skin outside, voxel IoU from fit_quality.h).
 #include "bench/study_common.h"
 
-#include "bodyfit/fit_quality.h"
+#include "bodyfit/fitting/fit_quality.h"
 
 namespace
 {

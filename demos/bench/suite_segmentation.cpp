@@ -4,10 +4,10 @@
 // (posed bodies share its vertex order), and the geodesic solver's own cost.
 #include "bench/bench_common.h"
 
-#include "bodyfit/body_fitter.h"
-#include "bodyfit/geodesics.h"
-#include "bodyfit/mesh_io.h"
-#include "bodyfit/segmentation.h"
+#include "bodyfit/fitting/body_fitter.h"
+#include "bodyfit/fitting/geodesics.h"
+#include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/segmentation.h"
 
 #include <Eigen/Geometry>
 

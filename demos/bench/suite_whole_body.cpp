@@ -7,10 +7,10 @@
 // DESIGN.md sec. 5.
 #include "bench/bench_common.h"
 
-#include "bodyfit/body_fitter.h"
-#include "bodyfit/fit_quality.h"
-#include "bodyfit/mesh_io.h"
-#include "bodyfit/segmentation.h"
+#include "bodyfit/fitting/body_fitter.h"
+#include "bodyfit/fitting/fit_quality.h"
+#include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/segmentation.h"
 
 #include <ctime>
 

@@ -14,7 +14,7 @@
 /// A UsageError or any bodyfit typed error (MeshLoadError, InvalidInputError, FormatError) thrown inside prints
 /// "bodyfit-x: error: <one line>" to stderr and returns 2; any other exception returns 1.
 
-#include "bodyfit/errors.h"
+#include "bodyfit/fitting/errors.h"
 
 #include <cctype>
 #include <cmath>

@@ -1,9 +1,9 @@
 // Pruned bisecting K-means refinement with MVEEs (paper sec. 3.3; DESIGN.md sec. 2). See body_fitter.h.
-#include "bodyfit/body_fitter.h"
+#include "bodyfit/fitting/body_fitter.h"
 
-#include "bodyfit/errors.h"
-#include "bodyfit/kmeans.h"
-#include "bodyfit/mesh_io.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/kmeans.h"
+#include "bodyfit/fitting/mesh_io.h"
 
 #include <algorithm>
 #include <array>

@@ -1,7 +1,7 @@
 // Ellipsoid geometry: zeta, radial projection, normals, AABB, segment entry and Eberly's closest point.
 // Every query works in the ellipsoid's local frame (relative to its centre), so results do not degrade when the
 // ellipsoid sits far from the world origin.
-#include "bodyfit/ellipsoid.h"
+#include "bodyfit/fitting/ellipsoid.h"
 
 #include <algorithm>
 #include <array>

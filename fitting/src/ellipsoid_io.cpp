@@ -1,8 +1,8 @@
 // Ellipsoid-set JSON (DESIGN.md sec. 2) and the triangle-mesh export. See ellipsoid_io.h.
-#include "bodyfit/ellipsoid_io.h"
+#include "bodyfit/fitting/ellipsoid_io.h"
 
-#include "bodyfit/errors.h"
-#include "bodyfit/mesh_io.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
 
 #include <nlohmann/json.hpp>
 

@@ -1,5 +1,5 @@
 // Fitting error of an ellipsoid over a vertex set (paper eq. 6) and the true air gap.
-#include "bodyfit/fit_error.h"
+#include "bodyfit/fitting/fit_error.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,8 +1,8 @@
 // Fit-quality metrics of a union of ellipsoids against a body mesh (DESIGN.md sec. 5): air gap, skin outside the
 // union, voxel IoU. See fit_quality.h for the definitions.
-#include "bodyfit/fit_quality.h"
+#include "bodyfit/fitting/fit_quality.h"
 
-#include "bodyfit/errors.h"
+#include "bodyfit/fitting/errors.h"
 
 #include <algorithm>
 #include <array>

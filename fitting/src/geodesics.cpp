@@ -1,7 +1,7 @@
 /// \file geodesics.cpp
 /// Dijkstra on the edge graph of a triangle mesh (+ unfolded face diagonals), CSR storage, reused binary heap.
 
-#include "bodyfit/geodesics.h"
+#include "bodyfit/fitting/geodesics.h"
 
 #include <Eigen/Geometry>
 

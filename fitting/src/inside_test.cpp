@@ -1,7 +1,7 @@
-#include "bodyfit/inside_test.h"
+#include "bodyfit/fitting/inside_test.h"
 
-#include "bodyfit/errors.h"
-#include "bodyfit/mesh_io.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,7 @@
 // Pruned K-means with Hamerly's bounds. See kmeans.h.
-#include "bodyfit/kmeans.h"
+#include "bodyfit/fitting/kmeans.h"
 
-#include "bodyfit/errors.h"
+#include "bodyfit/fitting/errors.h"
 
 #include <algorithm>
 #include <cmath>

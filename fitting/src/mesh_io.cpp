@@ -1,7 +1,7 @@
 // Mesh input and repair. The only file of the library that includes assimp.
-#include "bodyfit/mesh_io.h"
+#include "bodyfit/fitting/mesh_io.h"
 
-#include "bodyfit/errors.h"
+#include "bodyfit/fitting/errors.h"
 
 #include <Eigen/Geometry>
 #include <assimp/Importer.hpp>

@@ -6,9 +6,9 @@
 // Notation (d = dimension, l = d + 1): lifted points q_i = (y_i, 1); weights u (sum 1); X(u) = sum_i u_i q_i q_i^T;
 // M_i = q_i^T X^-1 q_i. Optimality: max_i M_i = l. With c = sum u_i y_i and S = sum u_i y_i y_i^T - c c^T,
 // M_i = 1 + (y_i - c)^T S^-1 (y_i - c) and the ellipsoid is {y : (y - c)^T S^-1 (y - c) <= d}.
-#include "bodyfit/mvee.h"
+#include "bodyfit/fitting/mvee.h"
 
-#include "bodyfit/errors.h"
+#include "bodyfit/fitting/errors.h"
 
 #include <algorithm>
 #include <array>

@@ -1,9 +1,9 @@
 /// \file segmentation.cpp
 /// Semantic segmentation of a standing human body (paper sec. 2; DESIGN.md sec. 2).
 
-#include "bodyfit/segmentation.h"
+#include "bodyfit/fitting/segmentation.h"
 
-#include "bodyfit/mesh_io.h"
+#include "bodyfit/fitting/mesh_io.h"
 
 #include <Eigen/Geometry>
 

@@ -2,8 +2,8 @@
 // Shared helpers for the cloth-collider tests: a world with the collider's solver, a body with an ellipsoid
 // compound, a cloth patch, and the guarantee check evaluated in double precision after every substep.
 
-#include "btEllipsoidClothCollider.h"
-#include "btEllipsoidCompoundShape.h"
+#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
+#include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 
 #include "BulletDynamics/Dynamics/btRigidBody.h"
 #include "BulletSoftBody/btSoftBodyHelpers.h"

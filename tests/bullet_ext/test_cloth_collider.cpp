@@ -1,10 +1,10 @@
 // btEllipsoidClothCollider: the guarantees of issue 4 (no movable node inside any ellipsoid after every substep,
 // zeta >= 1 - 1e-6, no NaN/Inf), the paper's Figure 6 cases, push-out without oscillation, moving bodies,
 // installation and its error paths.
-#include "cloth_test_scene.h"
+#include "bullet_ext/cloth_test_scene.h"
 
-#include "bridge/btBodyFitToBullet.h"
-#include "support_paths.h"
+#include "bodyfit/bridge/btBodyFitToBullet.h"
+#include "support/paths.h"
 
 #include "BulletCollision/BroadphaseCollision/btDbvtBroadphase.h"
 #include "BulletCollision/CollisionShapes/btBoxShape.h"

@@ -2,7 +2,7 @@
 // nearest exit that is connected to the outside, not at a nearer one inside a pocket the ellipsoids enclose
 // (fitted bodies have such pockets between neighbouring ellipsoids under the skin; a node pushed there is outside
 // every ellipsoid but inside the body).
-#include "cloth_test_scene.h"
+#include "bullet_ext/cloth_test_scene.h"
 
 #include <catch2/catch.hpp>
 

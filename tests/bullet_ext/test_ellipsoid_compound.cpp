@@ -1,12 +1,12 @@
 // btEllipsoidCompoundShape (analytic data in sync with the Bullet children), btEllipsoidWorldCache (world space
 // + grid broadphase) and the bridge from bodyfit::Ellipsoid.
-#include "bridge/btBodyFitToBullet.h"
-#include "bridge/btEigenConversion.h"
-#include "btEllipsoidCompoundShape.h"
+#include "bodyfit/bridge/btBodyFitToBullet.h"
+#include "bodyfit/bridge/btEigenConversion.h"
+#include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 
-#include "bodyfit/errors.h"
+#include "bodyfit/fitting/errors.h"
 
-#include "support_paths.h"
+#include "support/paths.h"
 
 #include <catch2/catch.hpp>
 

@@ -1,7 +1,7 @@
 // btEllipsoidShape: support map, AABB, inertia, margin and scaling, GJK/EPA against other shapes, ray tests.
-#include "btEllipsoidShape.h"
+#include "bodyfit/bullet_ext/btEllipsoidShape.h"
 
-#include "bodyfit/ellipsoid.h"
+#include "bodyfit/fitting/ellipsoid.h"
 
 #include "BulletCollision/CollisionShapes/btBoxShape.h"
 #include "BulletCollision/CollisionShapes/btSphereShape.h"

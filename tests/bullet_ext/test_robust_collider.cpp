@@ -14,8 +14,8 @@
 //      since the push-out ray crosses each ellipsoid's skin-widened chord at most once.
 // Fixed seeds. Default: 100,000 node paths (BODYFIT_PROPERTY_CASES overrides the count); the hidden test
 // "[.slow]" runs 10,000,000. The same file runs in the float and the float64 Bullet builds.
-#include "btEllipsoidClothCollider.h"
-#include "btEllipsoidCompoundShape.h"
+#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
+#include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 
 #include <catch2/catch.hpp>
 

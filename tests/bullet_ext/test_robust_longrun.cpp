@@ -4,10 +4,10 @@
 // no node inside any ellipsoid (zeta >= 1 - 1e-6, evaluated in long double from the compound's analytic data), and
 // the kinetic energy below a physical bound. Default: 10,000 steps (83 s of simulated time, a few seconds in Release);
 // BODYFIT_LONGRUN_STEPS overrides the count. Runs in the float and the float64 Bullet builds.
-#include "bridge/btBodyFitToBullet.h"
-#include "btEllipsoidClothCollider.h"
+#include "bodyfit/bridge/btBodyFitToBullet.h"
+#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 
-#include "support_paths.h"
+#include "support/paths.h"
 
 #include "BulletDynamics/Dynamics/btRigidBody.h"
 #include "BulletSoftBody/btSoftBodyHelpers.h"

@@ -1,8 +1,8 @@
 // Refinement (pruned bisecting K-means + MVEE): termination, thresholds or budget, enclosure, determinism, labels.
-#include "bodyfit/body_fitter.h"
-#include "bodyfit/errors.h"
-#include "bodyfit/mesh_io.h"
-#include "support_paths.h"
+#include "bodyfit/fitting/body_fitter.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
+#include "support/paths.h"
 
 #include <catch2/catch.hpp>
 

@@ -1,5 +1,5 @@
 // Ellipsoid geometry: exact queries checked against closed forms and brute-force sampling.
-#include "bodyfit/ellipsoid.h"
+#include "bodyfit/fitting/ellipsoid.h"
 #include "support/sampling.h"
 
 #include <catch2/catch.hpp>

@@ -1,7 +1,7 @@
 // Ellipsoid-set JSON: bit-exact round trip, one FormatError per bad field (naming it), and the mesh export.
-#include "bodyfit/ellipsoid_io.h"
-#include "bodyfit/errors.h"
-#include "bodyfit/mesh_io.h"
+#include "bodyfit/fitting/ellipsoid_io.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
 #include "support/sampling.h"
 
 #include <catch2/catch.hpp>

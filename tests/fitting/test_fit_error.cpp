@@ -1,5 +1,5 @@
 // Fitting error (paper eq. 6) and the true distance: exact values on simple shapes, and radial >= true distance.
-#include "bodyfit/fit_error.h"
+#include "bodyfit/fitting/fit_error.h"
 #include "support/sampling.h"
 
 #include <catch2/catch.hpp>

@@ -1,8 +1,8 @@
 // Fit-quality metrics (air gap, skin outside the union, voxel IoU) on meshes whose exact answer is known: a sphere
 // tessellation fitted by its own circumscribed sphere, scaled versions of it, a rotated ellipsoid tessellation, and
 // a redundant inner ellipsoid that must not change anything.
-#include "bodyfit/errors.h"
-#include "bodyfit/fit_quality.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/fit_quality.h"
 #include "support/mesh_shapes.h"
 
 #include <catch2/catch.hpp>

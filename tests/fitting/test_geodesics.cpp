@@ -1,6 +1,6 @@
 // Geodesic distances: Dijkstra on the edge graph (+ unfolded face diagonals) against exact distances on a plane and
 // a sphere, multi-source and truncated queries, buffer reuse, shortest-path tracing, unreachable vertices.
-#include "bodyfit/geodesics.h"
+#include "bodyfit/fitting/geodesics.h"
 #include "support/mesh_shapes.h"
 
 #include <catch2/catch.hpp>

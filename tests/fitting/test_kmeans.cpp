@@ -1,7 +1,7 @@
 // Pruned K-means: correctness against a plain Lloyd implementation, warm start = cold start, determinism, and
 // termination with a status on pathological input.
-#include "bodyfit/errors.h"
-#include "bodyfit/kmeans.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/kmeans.h"
 
 #include <catch2/catch.hpp>
 

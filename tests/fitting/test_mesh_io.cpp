@@ -1,7 +1,7 @@
 // Mesh input: every documented bad input gives its typed error; repairs and conversions are applied.
-#include "bodyfit/errors.h"
-#include "bodyfit/mesh_io.h"
-#include "support_paths.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
+#include "support/paths.h"
 
 #include <catch2/catch.hpp>
 

@@ -1,7 +1,7 @@
 // Minimum-volume enclosing ellipsoid: enclosure, optimality against an independent reference, recovery of known
 // ellipsoids, invariances, the degeneracy ladder, bad input, warm start and determinism.
-#include "bodyfit/errors.h"
-#include "bodyfit/mvee.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mvee.h"
 #include "support/reference_mvee.h"
 #include "support/sampling.h"
 

@@ -2,13 +2,13 @@
 // gives exactly the documented behaviour, a typed exception with a one-line message naming the file and the
 // problem, or the documented repair. (CLI exit codes: tests/robustness/cli_exit_codes.sh; scenes:
 // tests/bullet_ext/test_robust_scene_inputs.cpp.)
-#include "bodyfit/ellipsoid_io.h"
-#include "bodyfit/errors.h"
-#include "bodyfit/mesh_io.h"
-#include "bodyfit/mvee.h"
-#include "bodyfit/segmentation.h"
+#include "bodyfit/fitting/ellipsoid_io.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/mvee.h"
+#include "bodyfit/fitting/segmentation.h"
 
-#include "support_paths.h"
+#include "support/paths.h"
 
 #include <catch2/catch.hpp>
 

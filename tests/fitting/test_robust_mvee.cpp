@@ -2,8 +2,8 @@
 // a proper ellipsoid (orthonormal rotation with det +1, radii >= minRadius) and encloses every input point.
 // Fixed seed. Default 3,000 sets (a few seconds in Release); BODYFIT_MVEE_CASES overrides it; the hidden test
 // "[.slow]" runs 100,000 sets.
-#include "bodyfit/errors.h"
-#include "bodyfit/mvee.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mvee.h"
 
 #include "support/sampling.h"
 

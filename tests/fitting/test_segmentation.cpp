@@ -1,11 +1,11 @@
 // Semantic segmentation (paper sec. 2, DESIGN.md sec. 2) on the bundled bodies, posed bodies, a synthetic
 // arms-down pose and non-human meshes: coverage, connectivity, feature points, mirror symmetry, re-indexing and
 // pose invariance, and the clean fallback.
-#include "bodyfit/geodesics.h"
-#include "bodyfit/mesh_io.h"
-#include "bodyfit/segmentation.h"
+#include "bodyfit/fitting/geodesics.h"
+#include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/segmentation.h"
 #include "support/mesh_shapes.h"
-#include "support_paths.h"
+#include "support/paths.h"
 
 #include <catch2/catch.hpp>
 

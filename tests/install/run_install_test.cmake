@@ -1,6 +1,7 @@
-# ctest driver: install the build tree into a fresh prefix, configure + build the outside project against it,
-# run it. Arguments (-D): BUILD_DIR (the bodyfit build), WORK_DIR (scratch, wiped), PROJECT_DIR (tests/install/project),
-# GENERATOR, BUILD_TYPE.
+# ctest driver: install the build tree into a fresh prefix, then configure, build and run the outside projects in
+# PROJECT_DIR (tests/install): bullet_only (Bullet extension alone: no assimp / Eigen / nlohmann-json searched for,
+# none in ldd) and full (every component and every public header). Arguments (-D): BUILD_DIR (the bodyfit build),
+# WORK_DIR (scratch, wiped), PROJECT_DIR, GENERATOR, BUILD_TYPE.
 foreach(var BUILD_DIR WORK_DIR PROJECT_DIR GENERATOR)
 	if(NOT DEFINED ${var})
 		message(FATAL_ERROR "run_install_test.cmake: ${var} is not set")
@@ -23,8 +24,34 @@ function(run_step what)
 endfunction()
 
 run_step("cmake --install" "${CMAKE_COMMAND}" --install "${BUILD_DIR}" --prefix "${prefix}" --config "${BUILD_TYPE}")
-run_step("configure outside project" "${CMAKE_COMMAND}" -S "${PROJECT_DIR}" -B "${WORK_DIR}/build" -G "${GENERATOR}"
-	"-DCMAKE_PREFIX_PATH=${prefix}" "-DCMAKE_BUILD_TYPE=${BUILD_TYPE}")
-run_step("build outside project" "${CMAKE_COMMAND}" --build "${WORK_DIR}/build" --config "${BUILD_TYPE}")
-run_step("run outside project" "${WORK_DIR}/build/outside")
-message(STATUS "${last_output}")
+
+foreach(project bullet_only full)
+	set(build "${WORK_DIR}/${project}")
+	run_step("configure ${project}" "${CMAKE_COMMAND}" -S "${PROJECT_DIR}/${project}" -B "${build}" -G "${GENERATOR}"
+		"-DCMAKE_PREFIX_PATH=${prefix}" "-DCMAKE_BUILD_TYPE=${BUILD_TYPE}")
+	run_step("build ${project}" "${CMAKE_COMMAND}" --build "${build}" --config "${BUILD_TYPE}")
+	run_step("run ${project}" "${build}/${project}")
+	message(STATUS "${last_output}")
+endforeach()
+
+# The Bullet-only consumer: the package config must not have looked for the fitter's dependencies, and the program
+# must not load them.
+file(STRINGS "${WORK_DIR}/bullet_only/CMakeCache.txt" cache)
+foreach(dep assimp Eigen3 nlohmann_json)
+	foreach(line IN LISTS cache)
+		if(line MATCHES "^${dep}_DIR:")
+			message(FATAL_ERROR "bullet_only: find_package(bodyfit COMPONENTS bullet_ext) searched for ${dep} (${line})")
+		endif()
+	endforeach()
+endforeach()
+find_program(LDD ldd)
+if(LDD)
+	run_step("ldd bullet_only" "${LDD}" "${WORK_DIR}/bullet_only/bullet_only")
+	foreach(lib assimp nlohmann eigen)
+		string(TOLOWER "${last_output}" ldd_lower)
+		if(ldd_lower MATCHES "${lib}")
+			message(FATAL_ERROR "bullet_only links ${lib}:\n${last_output}")
+		endif()
+	endforeach()
+	message(STATUS "bullet_only: ldd lists no assimp, Eigen or nlohmann-json")
+endif()

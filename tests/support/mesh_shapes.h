@@ -1,7 +1,7 @@
 #pragma once
 // Closed triangle meshes generated in code for the geodesic and segmentation tests: UV sphere, subdivided cube,
 // flat grid, a star-shaped "animal" blob, and vertex re-indexing / mirroring helpers.
-#include "bodyfit/types.h"
+#include "bodyfit/fitting/types.h"
 
 #include <Eigen/Geometry>
 

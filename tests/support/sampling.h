@@ -1,7 +1,7 @@
 #pragma once
 // Deterministic random geometry for the tests and benchmarks: rotations, ellipsoids, point clouds.
 // Everything takes an explicit std::mt19937 so every run draws the same numbers.
-#include "bodyfit/ellipsoid.h"
+#include "bodyfit/fitting/ellipsoid.h"
 
 #include <Eigen/Geometry>
 

@@ -1,0 +1,206 @@
+#pragma once
+/// \file scene.h
+/// Drape scenes: a JSON file naming the body, the collider, the garment, the cloth material, the solver settings and
+/// the list of effects. Only listed effects are built and stepped (DESIGN.md sec. 4). Every unknown key and every
+/// bad value is a bodyfit::FormatError whose one-line message names the file and the key path, e.g.
+/// `demos/scenes/skirt.json: effects[1].wind.velocity: expected an array of 3 numbers`.
+///
+/// Relative paths in a scene are relative to the scene file's directory.
+
+#include "bodyfit/fitting/mesh_io.h"
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace bodyfit::drape
+{
+
+enum class ColliderKind
+{
+	Ellipsoids,         ///< our analytic ellipsoid-compound cloth collider (bullet_ext)
+	MeshBvh,            ///< Bullet's btBvhTriangleMeshShape of the body mesh, default soft-body SDF_RS path
+	ConvexHullCompound, ///< btCompoundShape of btConvexHullShape, one hull per ellipsoid's nearest body vertices
+	None,               ///< no body collider at all
+};
+const char* toString(ColliderKind kind);
+/// \throws FormatError (message "collider kind 'x' ...") for an unknown name.
+ColliderKind colliderKindFromString(const std::string& name);
+
+struct BodySpec
+{
+	std::string mesh;                 ///< body mesh (absolute path after parsing)
+	std::string ellipsoids;           ///< fitted ellipsoid JSON (absolute), empty when `fit` is given instead
+	std::optional<nlohmann::json> fit;///< fit parameters (passed to the fitter) when no ellipsoid file is given
+	UpAxis up = UpAxis::Y;
+	double scale = 1.0;
+};
+
+struct ColliderSpec
+{
+	ColliderKind kind = ColliderKind::Ellipsoids;
+	double skinOffset = 0.002;   ///< ellipsoids: distance a node is placed outside the surface (m)
+	double sdfVoxel = 0.02;      ///< Bullet paths: sparse-SDF voxel size (m); Bullet's default 0.25 is far too coarse
+	double shapeMargin = 0.004;  ///< Bullet paths: collision margin of the body shape (m)
+	double contactHardness = 1.0;///< Bullet paths: kKHR (static/kinematic contact hardness); Bullet's default 0.1 sinks
+};
+
+enum class GarmentType
+{
+	Patch,
+	Skirt,
+	Tights,
+	Tube,
+};
+const char* toString(GarmentType type);
+
+struct GarmentSpec
+{
+	GarmentType type = GarmentType::Patch;
+	// patch: horizontal rectangle (x by z) centred at `center`
+	Eigen::Vector2d size{1.0, 1.0};
+	Eigen::Vector2i resolution{31, 31};
+	// skirt / tights: mesh from the assets, transformed as p' = scaleCenter + scale * (p - scaleCenter) + offset
+	std::string mesh;           ///< absolute path after parsing
+	Eigen::Vector3d scale{1.0, 1.0, 1.0};
+	std::optional<Eigen::Vector3d> scaleCenter; ///< default: the centroid of the garment's vertices
+	Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+	// tube: open cylinder along +y
+	double radius = 0.2;
+	double length = 0.5;
+	int segments = 32;          ///< around
+	int rings = 16;             ///< along
+	Eigen::Vector3d center = Eigen::Vector3d::Zero(); ///< patch and tube centre
+};
+
+struct MaterialSpec
+{
+	double stretch = 0.9;    ///< linear stiffness of structural links, 0..1 (Bullet kLST)
+	double bending = 0.2;    ///< linear stiffness of bending links (across each interior edge), 0..1; 0 = none
+	double damping = 0.01;   ///< Bullet kDP, 0..1
+	double mass = 0.3;       ///< total cloth mass (kg), distributed by face area
+	double margin = 0.005;   ///< soft-body collision margin (m); Bullet's default 0.25 is far too coarse
+};
+
+struct SolverSpec
+{
+	double dt = 1.0 / 120.0;  ///< seconds per step
+	int substeps = 1;         ///< Bullet internal steps per step (dt / substeps each)
+	int iterations = 10;      ///< position iterations (Bullet piterations)
+	int steps = 240;          ///< default run length (overridden by --steps)
+};
+
+struct GravitySpec
+{
+	Eigen::Vector3d acceleration{0.0, -9.81, 0.0};
+};
+
+struct WindSpec
+{
+	Eigen::Vector3d velocity{2.0, 0.0, 0.0}; ///< steady component (m/s)
+	double turbulence = 1.0;                 ///< noise amplitude (m/s per component)
+	double lengthScale = 0.3;                ///< spatial correlation length of the noise (m)
+	double timeScale = 0.5;                  ///< temporal correlation time of the noise (s)
+	int octaves = 2;                         ///< noise octaves (each half the length and time scale, half the amplitude)
+	unsigned seed = 1;
+	double drag = 0.6;                       ///< drag coefficient used when `aerodynamics` is not listed
+};
+
+struct AerodynamicsSpec
+{
+	std::string model = "V_TwoSidedLiftDrag"; ///< Bullet eAeroModel name
+	double lift = 0.05;                       ///< Bullet kLF
+	double drag = 0.4;                        ///< Bullet kDG
+	double airDensity = 1.2;                  ///< kg/m^3 (btSoftBodyWorldInfo::air_density)
+};
+
+struct FrictionSpec
+{
+	double coefficient = 0.5; ///< Coulomb coefficient between cloth and body
+};
+
+struct SelfCollisionSpec
+{
+	double thickness = 0.006; ///< minimum distance kept between non-neighbouring cloth nodes (m)
+	double stiffness = 0.5;   ///< fraction of the overlap removed per step, 0..1
+};
+
+enum class PinSelect
+{
+	Corners,  ///< patch only: the four corners
+	Edge,     ///< patch only: one whole edge (`side`: "-x", "+x", "-z" or "+z")
+	Top,      ///< nodes within `band` of the highest node (waistbands)
+	Indices,  ///< explicit node indices
+};
+
+struct PinSpec
+{
+	PinSelect select = PinSelect::Corners;
+	std::string side = "-x";
+	double band = 0.01;
+	std::vector<int> indices;
+	bool toBody = false; ///< the pinned nodes follow the body (body_motion) instead of staying fixed in the world
+};
+
+struct Keyframe
+{
+	double time = 0.0;
+	Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+	Eigen::Vector3d axis{0.0, 1.0, 0.0};
+	double angleDeg = 0.0;
+};
+
+struct BodyMotionSpec
+{
+	std::vector<Keyframe> keyframes; ///< strictly increasing times; translation lerp, rotation slerp
+	std::optional<Eigen::Vector3d> pivot; ///< rotation centre in body coordinates (default: bounding-box centre)
+	bool loop = false;                ///< repeat the keyframe cycle (last key time = period)
+};
+
+/// The effects a scene lists. An absent optional means the effect is not built at all.
+struct EffectsSpec
+{
+	std::optional<GravitySpec> gravity;
+	std::optional<WindSpec> wind;
+	std::optional<AerodynamicsSpec> aerodynamics;
+	std::optional<FrictionSpec> friction;
+	std::optional<SelfCollisionSpec> selfCollision;
+	std::optional<PinSpec> pin;
+	std::optional<BodyMotionSpec> bodyMotion;
+
+	/// Names of the listed effects in canonical order.
+	std::vector<std::string> listed() const;
+};
+
+struct RenderSpec
+{
+	int width = 1200;
+	int height = 900;
+	bool showEllipsoids = false; ///< draw the ellipsoids instead of the body mesh
+};
+
+struct Scene
+{
+	std::string path;        ///< the scene file
+	std::string name;
+	BodySpec body;
+	ColliderSpec collider;
+	GarmentSpec garment;
+	MaterialSpec material;
+	SolverSpec solver;
+	EffectsSpec effects;
+	RenderSpec render;
+	int frameEvery = 10;     ///< --frames writes one OBJ every this many steps
+	int sampleEvery = 10;    ///< inside-body metric sampled every this many steps (and at the end)
+};
+
+/// Reads and validates a scene file. \throws FormatError naming the file and the key.
+Scene loadScene(const std::string& path);
+
+/// Validates an already-parsed document; `path` names the file in messages and anchors relative paths.
+Scene parseScene(const nlohmann::json& document, const std::string& path);
+
+} // namespace bodyfit::drape

@@ -1,0 +1,124 @@
+#pragma once
+/// \file simulation.h
+/// One drape run: the body (mesh + ellipsoids), the Bullet world with the scene's collider, the cloth, the listed
+/// effects, stepping with timing, and the cloth-quality metrics of DESIGN.md sec. 5.
+
+#include "bodyfit/drape/effects.h"
+#include "bodyfit/drape/garment.h"
+#include "bodyfit/drape/scene.h"
+
+#include "bodyfit/fitting/ellipsoid.h"
+#include "bodyfit/fitting/types.h"
+
+#include <nlohmann/json.hpp>
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+class btSoftBody;
+class btRigidBody;
+class btEllipsoidClothCollider;
+
+namespace bodyfit::drape
+{
+
+/// The body as loaded: the whole repaired mesh (every component; inside tests and pictures use it) and the
+/// ellipsoids (empty for mesh-bvh / none scenes without a fit), both in the body frame (= world frame at t = 0).
+struct BodyData
+{
+	TriMesh mesh;
+	std::vector<Ellipsoid> ellipsoids;
+	std::string meshPath;
+	std::string ellipsoidSource; ///< fit file, or "fit(...)" when the fitter ran
+	double fitSeconds = 0.0;     ///< time spent fitting (0 when read from a file)
+};
+
+/// Loads the body as the scene says; the overrides replace scene.body.mesh / scene.body.ellipsoids when not empty.
+/// \throws MeshLoadError, InvalidInputError, FormatError with a one-line reason.
+BodyData loadBody(const Scene& scene, const std::string& meshOverride = "", const std::string& ellipsoidOverride = "");
+
+struct StepStats
+{
+	double seconds = 0.0;          ///< wall time of the whole step (effects + Bullet)
+	double collisionSeconds = 0.0; ///< Bullet collision detection (soft contacts are generated there) + our collider
+};
+
+/// Cloth-quality numbers at one instant.
+struct ClothSample
+{
+	int insideBody = 0;       ///< nodes inside the real body mesh (ray-parity vote)
+	int insideEllipsoids = -1;///< nodes deeper than 1e-6 m inside some ellipsoid (-1: no ellipsoids)
+	double minZeta = 0.0;     ///< smallest zeta over nodes (inf when no ellipsoids)
+	double maxEllipsoidDepth = 0.0; ///< deepest node inside an ellipsoid (metres, Eberly distance; 0 if none)
+	int nanNodes = 0;         ///< nodes with a NaN/Inf coordinate or velocity
+};
+
+class DrapeSimulation
+{
+public:
+	DrapeSimulation(const Scene& scene, const BodyData& body);
+	~DrapeSimulation();
+	DrapeSimulation(const DrapeSimulation&) = delete;
+	DrapeSimulation& operator=(const DrapeSimulation&) = delete;
+
+	/// One scene step: `solver.substeps` Bullet steps of dt / substeps, each preceded by the listed effects.
+	StepStats step();
+
+	int stepsDone() const { return steps_; }
+	double time() const { return time_; }
+	int nodeCount() const;
+	btSoftBody* cloth() const { return cloth_; }
+	const GarmentMesh& garment() const { return garment_; }
+	const Scene& scene() const { return scene_; }
+	const BodyData& body() const { return body_; }
+	const EffectCounters& counters() const { return counters_; }
+	/// Per-step effect objects actually constructed, in stepping order (unlisted effects never appear).
+	std::vector<std::string> steppedEffects() const;
+	/// One line describing the collider and its tuning (voxel size, margins, hardness, skin offset).
+	const std::string& colliderDescription() const { return colliderDescription_; }
+	btEllipsoidClothCollider* ellipsoidCollider() const { return collider_; }
+
+	/// Current body pose (body frame -> world).
+	Eigen::Isometry3d bodyPose() const;
+	/// Cloth nodes (world), as a mesh with the garment's faces.
+	TriMesh clothMesh() const;
+	/// Body mesh / ellipsoids at the current pose (world).
+	TriMesh bodyMeshWorld() const;
+	std::vector<Ellipsoid> ellipsoidsWorld() const;
+
+	/// Inside/NaN counts now (the inside-body test runs in the body frame against the original mesh).
+	ClothSample sample() const;
+	/// Nodes counted as touching the body: within skin offset + 3 mm of the ellipsoid union (ellipsoids collider),
+	/// or holding a Bullet rigid contact after the last step (mesh-bvh, convex-hull-compound). Empty for `none`.
+	std::vector<int> contactNodes() const;
+	/// Signed distance of each listed node to the body skin (negative inside the body mesh).
+	std::vector<double> skinDistances(const std::vector<int>& nodes) const;
+	/// Sparse-SDF cells currently cached by Bullet (0 for the ellipsoid collider, which needs none).
+	int sdfCells() const;
+
+private:
+	struct Impl;
+	std::unique_ptr<Impl> impl_;
+	Scene scene_;
+	const BodyData& body_;
+	GarmentMesh garment_;
+	btSoftBody* cloth_ = nullptr;
+	btEllipsoidClothCollider* collider_ = nullptr;
+	EffectCounters counters_;
+	std::vector<std::unique_ptr<Effect>> effects_;
+	std::string colliderDescription_;
+	int steps_ = 0;
+	double time_ = 0.0;
+};
+
+/// Runs `steps` steps, sampling the inside count every scene.sampleEvery steps and at the end, and returns the
+/// metrics JSON of DESIGN.md sec. 6 (steps, nodes, ms_per_step, collision_ms_per_step, nodes_inside_body,
+/// max_nodes_inside_body, mean_contact_gap_m, nan_nodes, and more). `progress` (may be null) is called after
+/// every step with (done, total).
+nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps,
+							 const std::function<void(int, int, const StepStats&)>& progress = nullptr,
+							 const std::function<void(int)>& afterStep = nullptr);
+
+} // namespace bodyfit::drape

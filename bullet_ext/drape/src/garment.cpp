@@ -1,0 +1,240 @@
+#include "bodyfit/drape/garment.h"
+
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
+
+#include <BulletSoftBody/btSoftBody.h>
+
+#include <cmath>
+#include <cstdint>
+#include <unordered_map>
+#include <unordered_set>
+
+namespace bodyfit::drape
+{
+namespace
+{
+
+std::uint64_t edgeKey(int a, int b)
+{
+	if (a > b)
+		std::swap(a, b);
+	return (std::uint64_t(std::uint32_t(a)) << 32) | std::uint32_t(b);
+}
+
+GarmentMesh makePatch(const GarmentSpec& s)
+{
+	GarmentMesh g;
+	g.resX = s.resolution.x();
+	g.resZ = s.resolution.y();
+	const int nx = g.resX, nz = g.resZ;
+	g.mesh.V.resize(nx * nz, 3);
+	for (int iz = 0; iz < nz; ++iz)
+		for (int ix = 0; ix < nx; ++ix)
+			g.mesh.V.row(iz * nx + ix) << s.center.x() + s.size.x() * (double(ix) / (nx - 1) - 0.5), s.center.y(),
+				s.center.z() + s.size.y() * (double(iz) / (nz - 1) - 0.5);
+	g.mesh.F.resize(2 * (nx - 1) * (nz - 1), 3);
+	int f = 0;
+	for (int iz = 0; iz + 1 < nz; ++iz)
+		for (int ix = 0; ix + 1 < nx; ++ix)
+		{
+			const int a = iz * nx + ix, b = a + 1, c = a + nx, d = c + 1;
+			// Alternate the diagonal so the patch has no preferred shear direction; faces point +y (CCW from above).
+			if ((ix + iz) % 2 == 0)
+			{
+				g.mesh.F.row(f++) << a, c, d;
+				g.mesh.F.row(f++) << a, d, b;
+			}
+			else
+			{
+				g.mesh.F.row(f++) << a, c, b;
+				g.mesh.F.row(f++) << b, c, d;
+			}
+		}
+	return g;
+}
+
+GarmentMesh makeTube(const GarmentSpec& s)
+{
+	GarmentMesh g;
+	const int ns = s.segments, nr = s.rings;
+	g.mesh.V.resize(ns * nr, 3);
+	for (int r = 0; r < nr; ++r)
+		for (int k = 0; k < ns; ++k)
+		{
+			const double phi = 2.0 * M_PI * k / ns;
+			g.mesh.V.row(r * ns + k) << s.center.x() + s.radius * std::cos(phi),
+				s.center.y() + s.length * (double(r) / (nr - 1) - 0.5), s.center.z() - s.radius * std::sin(phi);
+		}
+	g.mesh.F.resize(2 * ns * (nr - 1), 3);
+	int f = 0;
+	for (int r = 0; r + 1 < nr; ++r)
+		for (int k = 0; k < ns; ++k)
+		{
+			const int a = r * ns + k, b = r * ns + (k + 1) % ns, c = a + ns, d = b + ns;
+			g.mesh.F.row(f++) << a, b, d; // outward normals
+			g.mesh.F.row(f++) << a, d, c;
+		}
+	return g;
+}
+
+GarmentMesh loadGarment(const GarmentSpec& s)
+{
+	GarmentMesh g;
+	g.mesh = loadTriMesh(s.mesh).full;
+	Eigen::Vector3d centre = s.scaleCenter ? *s.scaleCenter : Eigen::Vector3d(g.mesh.V.colwise().mean().transpose());
+	for (int i = 0; i < g.mesh.V.rows(); ++i)
+	{
+		const Eigen::Vector3d p = g.mesh.V.row(i).transpose();
+		g.mesh.V.row(i) = (centre + s.scale.cwiseProduct(p - centre) + s.offset).transpose();
+	}
+	return g;
+}
+
+} // namespace
+
+GarmentMesh buildGarmentMesh(const GarmentSpec& spec)
+{
+	switch (spec.type)
+	{
+	case GarmentType::Patch:
+		return makePatch(spec);
+	case GarmentType::Tube:
+		return makeTube(spec);
+	case GarmentType::Skirt:
+	case GarmentType::Tights:
+		return loadGarment(spec);
+	}
+	throw InvalidInputError("unknown garment type");
+}
+
+btSoftBody* buildSoftBody(btSoftBodyWorldInfo& worldInfo, const TriMesh& mesh, const MaterialSpec& material,
+						  const SolverSpec& solver, SoftBodyBuildInfo* info)
+{
+	btSoftBody* psb = new btSoftBody(&worldInfo);
+	// This constructor creates no material; appendNode gives every node m_materials[0], so create it first.
+	btSoftBody::Material* stretch = psb->appendMaterial();
+	stretch->m_kLST = btScalar(material.stretch);
+	stretch->m_kAST = btScalar(material.stretch);
+	stretch->m_kVST = 1;
+	stretch->m_flags = btSoftBody::fMaterial::Default;
+	// The margin must be set before appendNode: it sizes each node's leaf in the node tree.
+	psb->getCollisionShape()->setMargin(btScalar(material.margin));
+	psb->m_nodes.reserve(int(mesh.V.rows()));
+	for (int i = 0; i < mesh.V.rows(); ++i)
+		psb->appendNode(btVector3(btScalar(mesh.V(i, 0)), btScalar(mesh.V(i, 1)), btScalar(mesh.V(i, 2))), 1);
+	btSoftBody::Material* bend = nullptr;
+	if (material.bending > 0.0)
+	{
+		bend = psb->appendMaterial();
+		bend->m_kLST = btScalar(material.bending);
+		bend->m_kAST = btScalar(material.bending);
+		bend->m_kVST = 1;
+		bend->m_flags = btSoftBody::fMaterial::Default;
+	}
+
+	// Unique edges with the vertices opposite to them (-1 = none yet); two opposites = interior edge.
+	struct EdgeInfo
+	{
+		int a, b;
+		int opposite[2];
+	};
+	std::unordered_map<std::uint64_t, int> edgeIndex;
+	edgeIndex.reserve(std::size_t(mesh.F.rows()) * 2);
+	std::vector<EdgeInfo> edges;
+	edges.reserve(std::size_t(mesh.F.rows()) * 2);
+	for (int f = 0; f < mesh.F.rows(); ++f)
+		for (int k = 0; k < 3; ++k)
+		{
+			const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3), c = mesh.F(f, (k + 2) % 3);
+			auto [it, inserted] = edgeIndex.emplace(edgeKey(a, b), int(edges.size()));
+			if (inserted)
+				edges.push_back({a, b, {c, -1}});
+			else if (edges[it->second].opposite[1] < 0)
+				edges[it->second].opposite[1] = c;
+		}
+	psb->m_links.reserve(int(edges.size() * (bend ? 2 : 1)));
+	for (const EdgeInfo& e : edges)
+		psb->appendLink(e.a, e.b, stretch, false);
+	int bendingLinks = 0;
+	if (bend)
+	{
+		std::unordered_set<std::uint64_t> linked;
+		linked.reserve(edges.size() * 2);
+		for (const auto& kv : edgeIndex)
+			linked.insert(kv.first);
+		for (const EdgeInfo& e : edges)
+		{
+			if (e.opposite[1] < 0 || e.opposite[0] == e.opposite[1])
+				continue;
+			if (!linked.insert(edgeKey(e.opposite[0], e.opposite[1])).second)
+				continue;
+			psb->appendLink(e.opposite[0], e.opposite[1], bend, false);
+			psb->m_links[psb->m_links.size() - 1].m_bbending = 1;
+			++bendingLinks;
+		}
+	}
+	psb->m_faces.reserve(int(mesh.F.rows()));
+	for (int f = 0; f < mesh.F.rows(); ++f)
+		psb->appendFace(mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2), stretch);
+
+	psb->setTotalMass(btScalar(material.mass), true);
+	psb->m_cfg.piterations = solver.iterations;
+	psb->m_cfg.kDP = btScalar(material.damping);
+	psb->m_cfg.kDF = 0; // no friction unless the scene lists the `friction` effect
+	psb->m_cfg.collisions = btSoftBody::fCollision::SDF_RS;
+	// Deterministic (Bullet seeds its own generator) shuffle of link order: better Gauss-Seidel convergence.
+	psb->randomizeConstraints();
+	psb->updateNormals();
+	if (info)
+	{
+		info->nodes = psb->m_nodes.size();
+		info->structuralLinks = int(edges.size());
+		info->bendingLinks = bendingLinks;
+		info->faces = psb->m_faces.size();
+	}
+	return psb;
+}
+
+std::vector<int> selectPinnedNodes(const PinSpec& pin, const GarmentMesh& garment, const std::string& sceneFile)
+{
+	std::vector<int> nodes;
+	const TriMesh& m = garment.mesh;
+	const int n = m.vertexCount();
+	switch (pin.select)
+	{
+	case PinSelect::Corners:
+		nodes = {0, garment.resX - 1, (garment.resZ - 1) * garment.resX, garment.resZ * garment.resX - 1};
+		break;
+	case PinSelect::Edge:
+		if (pin.side == "-x" || pin.side == "+x")
+			for (int iz = 0; iz < garment.resZ; ++iz)
+				nodes.push_back(iz * garment.resX + (pin.side == "-x" ? 0 : garment.resX - 1));
+		else
+			for (int ix = 0; ix < garment.resX; ++ix)
+				nodes.push_back((pin.side == "-z" ? 0 : garment.resZ - 1) * garment.resX + ix);
+		break;
+	case PinSelect::Top:
+	{
+		const double top = m.V.col(1).maxCoeff();
+		for (int i = 0; i < n; ++i)
+			if (m.V(i, 1) >= top - pin.band)
+				nodes.push_back(i);
+		break;
+	}
+	case PinSelect::Indices:
+		for (int i : pin.indices)
+		{
+			if (i >= n)
+				throw FormatError(sceneFile + ": effects.pin.indices: node " + std::to_string(i) +
+								  " does not exist (the garment has " + std::to_string(n) + " nodes)");
+			nodes.push_back(i);
+		}
+		break;
+	}
+	if (nodes.empty())
+		throw FormatError(sceneFile + ": effects.pin: the selection is empty");
+	return nodes;
+}
+
+} // namespace bodyfit::drape

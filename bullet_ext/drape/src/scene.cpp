@@ -1,0 +1,594 @@
+#include "bodyfit/drape/scene.h"
+
+#include "bodyfit/fitting/errors.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace bodyfit::drape
+{
+namespace
+{
+
+using nlohmann::json;
+
+const char* typeName(const json& j)
+{
+	switch (j.type())
+	{
+	case json::value_t::null:
+		return "null";
+	case json::value_t::object:
+		return "an object";
+	case json::value_t::array:
+		return "an array";
+	case json::value_t::string:
+		return "a string";
+	case json::value_t::boolean:
+		return "a boolean";
+	case json::value_t::number_integer:
+	case json::value_t::number_unsigned:
+	case json::value_t::number_float:
+		return "a number";
+	default:
+		return "an unsupported value";
+	}
+}
+
+std::string formatNumber(double v)
+{
+	std::ostringstream s;
+	s << v;
+	return s.str();
+}
+
+/// Reads one JSON object, remembering which keys were consumed so that `finish()` can reject unknown ones.
+/// Every error names the file and the dotted key path.
+class ObjectReader
+{
+public:
+	ObjectReader(const json& j, std::string keyPath, const std::string& file, const std::string& baseDir)
+		: j_(j), path_(std::move(keyPath)), file_(file), baseDir_(baseDir)
+	{
+		if (!j_.is_object())
+			fail(path_, std::string("expected an object, got ") + typeName(j_));
+	}
+
+	[[noreturn]] void fail(const std::string& keyPath, const std::string& reason) const
+	{
+		throw FormatError(file_ + ": " + keyPath + ": " + reason);
+	}
+
+	std::string keyPath(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+
+	bool has(const std::string& key)
+	{
+		allowed_.insert(key);
+		return j_.contains(key);
+	}
+
+	const json& get(const std::string& key)
+	{
+		allowed_.insert(key);
+		if (!j_.contains(key))
+			fail(keyPath(key), "required key is missing");
+		return j_.at(key);
+	}
+
+	double number(const std::string& key, double def, double lo, double hi, bool loOpen = false)
+	{
+		if (!has(key))
+			return def;
+		return checkNumber(get(key), keyPath(key), lo, hi, loOpen);
+	}
+
+	double checkNumber(const json& v, const std::string& where, double lo, double hi, bool loOpen = false) const
+	{
+		if (!v.is_number())
+			fail(where, std::string("expected a number, got ") + typeName(v));
+		const double x = v.get<double>();
+		if (!std::isfinite(x))
+			fail(where, "expected a finite number");
+		if ((loOpen ? x <= lo : x < lo) || x > hi)
+			fail(where, "value " + formatNumber(x) + " is outside " + (loOpen ? "(" : "[") + formatNumber(lo) + ", " +
+							formatNumber(hi) + "]");
+		return x;
+	}
+
+	int integer(const std::string& key, int def, int lo, int hi)
+	{
+		if (!has(key))
+			return def;
+		return checkInteger(get(key), keyPath(key), lo, hi);
+	}
+
+	int checkInteger(const json& v, const std::string& where, int lo, int hi) const
+	{
+		if (!v.is_number_integer() && !v.is_number_unsigned())
+			fail(where, std::string("expected an integer, got ") + typeName(v));
+		const long long x = v.get<long long>();
+		if (x < lo || x > hi)
+			fail(where, "value " + std::to_string(x) + " is outside [" + std::to_string(lo) + ", " +
+							std::to_string(hi) + "]");
+		return int(x);
+	}
+
+	bool boolean(const std::string& key, bool def)
+	{
+		if (!has(key))
+			return def;
+		const json& v = get(key);
+		if (!v.is_boolean())
+			fail(keyPath(key), std::string("expected true or false, got ") + typeName(v));
+		return v.get<bool>();
+	}
+
+	std::string string(const std::string& key, const std::string& def, const std::vector<std::string>& choices = {})
+	{
+		if (!has(key))
+			return def;
+		const json& v = get(key);
+		if (!v.is_string())
+			fail(keyPath(key), std::string("expected a string, got ") + typeName(v));
+		const std::string s = v.get<std::string>();
+		if (!choices.empty() && std::find(choices.begin(), choices.end(), s) == choices.end())
+			fail(keyPath(key), "'" + s + "' is not one of " + join(choices));
+		return s;
+	}
+
+	std::string requiredString(const std::string& key, const std::vector<std::string>& choices = {})
+	{
+		get(key);
+		return string(key, "", choices);
+	}
+
+	/// A file path relative to the scene's directory; must exist.
+	std::string file(const std::string& key)
+	{
+		const std::string s = requiredString(key);
+		if (s.empty())
+			fail(keyPath(key), "empty path");
+		std::filesystem::path p(s);
+		if (p.is_relative())
+			p = std::filesystem::path(baseDir_) / p;
+		p = p.lexically_normal();
+		if (!std::filesystem::is_regular_file(p))
+			fail(keyPath(key), "file '" + p.string() + "' does not exist");
+		return p.string();
+	}
+
+	Eigen::Vector3d vec3(const std::string& key, const Eigen::Vector3d& def, double lo = -1e6, double hi = 1e6)
+	{
+		if (!has(key))
+			return def;
+		const json& v = get(key);
+		if (!v.is_array() || v.size() != 3)
+			fail(keyPath(key), "expected an array of 3 numbers");
+		Eigen::Vector3d r;
+		for (int i = 0; i < 3; ++i)
+			r[i] = checkNumber(v[i], keyPath(key) + "[" + std::to_string(i) + "]", lo, hi);
+		return r;
+	}
+
+	Eigen::Vector2d vec2(const std::string& key, const Eigen::Vector2d& def, double lo, double hi, bool loOpen)
+	{
+		if (!has(key))
+			return def;
+		const json& v = get(key);
+		if (!v.is_array() || v.size() != 2)
+			fail(keyPath(key), "expected an array of 2 numbers");
+		Eigen::Vector2d r;
+		for (int i = 0; i < 2; ++i)
+			r[i] = checkNumber(v[i], keyPath(key) + "[" + std::to_string(i) + "]", lo, hi, loOpen);
+		return r;
+	}
+
+	Eigen::Vector2i ivec2(const std::string& key, const Eigen::Vector2i& def, int lo, int hi)
+	{
+		if (!has(key))
+			return def;
+		const json& v = get(key);
+		if (!v.is_array() || v.size() != 2)
+			fail(keyPath(key), "expected an array of 2 integers");
+		return Eigen::Vector2i(checkInteger(v[0], keyPath(key) + "[0]", lo, hi),
+							   checkInteger(v[1], keyPath(key) + "[1]", lo, hi));
+	}
+
+	ObjectReader child(const std::string& key) { return ObjectReader(get(key), keyPath(key), file_, baseDir_); }
+
+	/// Rejects every key that no accessor asked about.
+	void finish() const
+	{
+		for (auto it = j_.begin(); it != j_.end(); ++it)
+			if (!allowed_.count(it.key()))
+				fail(keyPath(it.key()), "unknown key (allowed here: " + join({allowed_.begin(), allowed_.end()}) + ")");
+	}
+
+	const std::string& path() const { return path_; }
+	const std::string& fileName() const { return file_; }
+	const std::string& baseDir() const { return baseDir_; }
+
+	static std::string join(const std::vector<std::string>& items)
+	{
+		std::string s;
+		for (const std::string& i : items)
+			s += (s.empty() ? "" : ", ") + i;
+		return s;
+	}
+
+private:
+	const json& j_;
+	std::string path_;
+	const std::string& file_;
+	const std::string& baseDir_;
+	std::set<std::string> allowed_;
+};
+
+BodySpec parseBody(ObjectReader r)
+{
+	BodySpec b;
+	b.mesh = r.file("mesh");
+	const bool hasEllipsoids = r.has("ellipsoids"), hasFit = r.has("fit");
+	if (hasEllipsoids && hasFit)
+		r.fail(r.keyPath("fit"), "give either 'ellipsoids' (a fit file) or 'fit' (fit parameters), not both");
+	if (hasEllipsoids)
+		b.ellipsoids = r.file("ellipsoids");
+	if (hasFit)
+	{
+		const json& f = r.get("fit");
+		if (!f.is_object())
+			r.fail(r.keyPath("fit"), std::string("expected an object of fit parameters, got ") + typeName(f));
+		b.fit = f;
+	}
+	b.up = r.string("up", "y", {"y", "z"}) == "z" ? UpAxis::Z : UpAxis::Y;
+	b.scale = r.number("scale", 1.0, 0.0, 1e6, true);
+	r.finish();
+	return b;
+}
+
+ColliderSpec parseCollider(const json& j, ObjectReader& top)
+{
+	ColliderSpec c;
+	const std::vector<std::string> kinds = {"ellipsoids", "mesh-bvh", "convex-hull-compound", "none"};
+	if (j.is_string())
+	{
+		const std::string s = top.string("collider", "", kinds);
+		c.kind = colliderKindFromString(s);
+		return c;
+	}
+	ObjectReader r = top.child("collider");
+	c.kind = colliderKindFromString(r.requiredString("kind", kinds));
+	c.skinOffset = r.number("skin_offset_m", c.skinOffset, 0.0, 0.05);
+	c.sdfVoxel = r.number("sdf_voxel_m", c.sdfVoxel, 0.001, 1.0);
+	c.shapeMargin = r.number("shape_margin_m", c.shapeMargin, 0.0, 0.1);
+	c.contactHardness = r.number("contact_hardness", c.contactHardness, 0.0, 1.0, true);
+	r.finish();
+	return c;
+}
+
+GarmentSpec parseGarment(ObjectReader r)
+{
+	GarmentSpec g;
+	const std::string type = r.requiredString("type", {"patch", "skirt", "tights", "tube"});
+	if (type == "patch")
+	{
+		g.type = GarmentType::Patch;
+		g.size = r.vec2("size_m", g.size, 0.0, 100.0, true);
+		g.resolution = r.ivec2("resolution", g.resolution, 2, 512);
+		g.center = r.vec3("center", g.center);
+	}
+	else if (type == "skirt" || type == "tights")
+	{
+		g.type = type == "skirt" ? GarmentType::Skirt : GarmentType::Tights;
+		g.mesh = r.file("mesh");
+		if (r.has("scale"))
+		{
+			const json& s = r.get("scale");
+			if (s.is_number())
+				g.scale.setConstant(r.checkNumber(s, r.keyPath("scale"), 0.0, 100.0, true));
+			else
+				g.scale = r.vec3("scale", g.scale, 1e-6, 100.0);
+		}
+		if (r.has("scale_center"))
+			g.scaleCenter = r.vec3("scale_center", Eigen::Vector3d::Zero());
+		g.offset = r.vec3("offset", g.offset);
+	}
+	else
+	{
+		g.type = GarmentType::Tube;
+		g.radius = r.number("radius_m", g.radius, 0.0, 10.0, true);
+		g.length = r.number("length_m", g.length, 0.0, 100.0, true);
+		g.segments = r.integer("segments", g.segments, 3, 1024);
+		g.rings = r.integer("rings", g.rings, 2, 1024);
+		g.center = r.vec3("center", g.center);
+	}
+	r.finish();
+	return g;
+}
+
+MaterialSpec parseMaterial(ObjectReader r)
+{
+	MaterialSpec m;
+	m.stretch = r.number("stretch", m.stretch, 0.0, 1.0, true);
+	m.bending = r.number("bending", m.bending, 0.0, 1.0);
+	m.damping = r.number("damping", m.damping, 0.0, 0.99);
+	m.mass = r.number("mass_kg", m.mass, 0.0, 1e4, true);
+	m.margin = r.number("margin_m", m.margin, 0.0, 0.1, true);
+	r.finish();
+	return m;
+}
+
+SolverSpec parseSolver(ObjectReader r)
+{
+	SolverSpec s;
+	s.dt = r.number("dt", s.dt, 0.0, 0.1, true);
+	s.substeps = r.integer("substeps", s.substeps, 1, 100);
+	s.iterations = r.integer("iterations", s.iterations, 1, 200);
+	s.steps = r.integer("steps", s.steps, 0, 10000000);
+	r.finish();
+	return s;
+}
+
+BodyMotionSpec parseBodyMotion(ObjectReader& r)
+{
+	BodyMotionSpec m;
+	const json& keys = r.get("keyframes");
+	const std::string where = r.keyPath("keyframes");
+	if (!keys.is_array() || keys.empty())
+		r.fail(where, "expected a non-empty array of keyframes");
+	for (std::size_t i = 0; i < keys.size(); ++i)
+	{
+		ObjectReader k(keys[i], where + "[" + std::to_string(i) + "]", r.fileName(), r.baseDir());
+		Keyframe f;
+		f.time = k.checkNumber(k.get("t"), k.keyPath("t"), 0.0, 1e6);
+		f.translation = k.vec3("translation", f.translation);
+		f.axis = k.vec3("axis", f.axis);
+		f.angleDeg = k.number("angle_deg", 0.0, -360.0, 360.0);
+		if (f.angleDeg != 0.0 && f.axis.norm() < 1e-9)
+			k.fail(k.keyPath("axis"), "rotation axis must not be zero");
+		if (f.axis.norm() >= 1e-9)
+			f.axis.normalize();
+		else
+			f.axis = Eigen::Vector3d::UnitY();
+		if (!m.keyframes.empty() && f.time <= m.keyframes.back().time)
+			k.fail(k.keyPath("t"), "keyframe times must increase strictly");
+		k.finish();
+		m.keyframes.push_back(f);
+	}
+	if (r.has("pivot"))
+		m.pivot = r.vec3("pivot", Eigen::Vector3d::Zero());
+	m.loop = r.boolean("loop", false);
+	if (m.loop && m.keyframes.back().time <= 0.0)
+		r.fail(r.keyPath("loop"), "a looping motion needs a last keyframe time > 0");
+	return m;
+}
+
+void parseEffects(const json& list, const std::string& where, Scene& scene, const std::string& file,
+				  const std::string& baseDir)
+{
+	if (!list.is_array())
+		throw FormatError(file + ": " + where + ": expected an array of effect objects, got " + typeName(list));
+	const std::vector<std::string> names = {"gravity", "wind",    "aerodynamics", "friction",
+											"self_collision", "pin", "body_motion"};
+	std::set<std::string> seen;
+	EffectsSpec& e = scene.effects;
+	for (std::size_t i = 0; i < list.size(); ++i)
+	{
+		ObjectReader r(list[i], where + "[" + std::to_string(i) + "]", file, baseDir);
+		const std::string type = r.requiredString("type", names);
+		if (!seen.insert(type).second)
+			r.fail(r.keyPath("type"), "effect '" + type + "' is listed twice");
+		if (type == "gravity")
+		{
+			GravitySpec g;
+			g.acceleration = r.vec3("acceleration", g.acceleration, -1000.0, 1000.0);
+			e.gravity = g;
+		}
+		else if (type == "wind")
+		{
+			WindSpec w;
+			w.velocity = r.vec3("velocity", w.velocity, -200.0, 200.0);
+			w.turbulence = r.number("turbulence", w.turbulence, 0.0, 200.0);
+			w.lengthScale = r.number("length_scale_m", w.lengthScale, 0.0, 100.0, true);
+			w.timeScale = r.number("time_scale_s", w.timeScale, 0.0, 1000.0, true);
+			w.octaves = r.integer("octaves", w.octaves, 1, 6);
+			w.seed = unsigned(r.integer("seed", int(w.seed), 0, 1 << 30));
+			w.drag = r.number("drag", w.drag, 0.0, 100.0);
+			e.wind = w;
+		}
+		else if (type == "aerodynamics")
+		{
+			AerodynamicsSpec a;
+			a.model = r.string("model", a.model,
+							   {"V_Point", "V_TwoSided", "V_TwoSidedLiftDrag", "V_OneSided", "F_TwoSided",
+								"F_TwoSidedLiftDrag", "F_OneSided"});
+			a.lift = r.number("lift", a.lift, 0.0, 100.0);
+			a.drag = r.number("drag", a.drag, 0.0, 100.0);
+			a.airDensity = r.number("air_density", a.airDensity, 0.0, 2000.0, true);
+			e.aerodynamics = a;
+		}
+		else if (type == "friction")
+		{
+			FrictionSpec f;
+			f.coefficient = r.number("coefficient", f.coefficient, 0.0, 10.0);
+			e.friction = f;
+		}
+		else if (type == "self_collision")
+		{
+			SelfCollisionSpec s;
+			s.thickness = r.number("thickness_m", s.thickness, 0.0, 0.1, true);
+			s.stiffness = r.number("stiffness", s.stiffness, 0.0, 1.0, true);
+			e.selfCollision = s;
+		}
+		else if (type == "pin")
+		{
+			PinSpec p;
+			const std::string sel = r.requiredString("select", {"corners", "edge", "top", "indices"});
+			const bool patch = scene.garment.type == GarmentType::Patch;
+			if ((sel == "corners" || sel == "edge") && !patch)
+				r.fail(r.keyPath("select"), "'" + sel + "' needs a patch garment");
+			if (sel == "corners")
+				p.select = PinSelect::Corners;
+			else if (sel == "edge")
+			{
+				p.select = PinSelect::Edge;
+				p.side = r.requiredString("side", {"-x", "+x", "-z", "+z"});
+			}
+			else if (sel == "top")
+			{
+				p.select = PinSelect::Top;
+				p.band = r.number("band_m", p.band, 0.0, 10.0);
+			}
+			else
+			{
+				p.select = PinSelect::Indices;
+				const json& idx = r.get("indices");
+				if (!idx.is_array() || idx.empty())
+					r.fail(r.keyPath("indices"), "expected a non-empty array of node indices");
+				for (std::size_t k = 0; k < idx.size(); ++k)
+					p.indices.push_back(
+						r.checkInteger(idx[k], r.keyPath("indices") + "[" + std::to_string(k) + "]", 0, 1 << 30));
+			}
+			p.toBody = r.string("attach", "world", {"world", "body"}) == "body";
+			e.pin = p;
+		}
+		else
+		{
+			e.bodyMotion = parseBodyMotion(r);
+		}
+		r.finish();
+	}
+}
+
+} // namespace
+
+const char* toString(ColliderKind kind)
+{
+	switch (kind)
+	{
+	case ColliderKind::Ellipsoids:
+		return "ellipsoids";
+	case ColliderKind::MeshBvh:
+		return "mesh-bvh";
+	case ColliderKind::ConvexHullCompound:
+		return "convex-hull-compound";
+	case ColliderKind::None:
+		return "none";
+	}
+	return "?";
+}
+
+ColliderKind colliderKindFromString(const std::string& name)
+{
+	for (ColliderKind k :
+		 {ColliderKind::Ellipsoids, ColliderKind::MeshBvh, ColliderKind::ConvexHullCompound, ColliderKind::None})
+		if (name == toString(k))
+			return k;
+	throw FormatError("collider kind '" + name + "' is not one of ellipsoids, mesh-bvh, convex-hull-compound, none");
+}
+
+const char* toString(GarmentType type)
+{
+	switch (type)
+	{
+	case GarmentType::Patch:
+		return "patch";
+	case GarmentType::Skirt:
+		return "skirt";
+	case GarmentType::Tights:
+		return "tights";
+	case GarmentType::Tube:
+		return "tube";
+	}
+	return "?";
+}
+
+std::vector<std::string> EffectsSpec::listed() const
+{
+	std::vector<std::string> names;
+	if (gravity)
+		names.push_back("gravity");
+	if (wind)
+		names.push_back("wind");
+	if (aerodynamics)
+		names.push_back("aerodynamics");
+	if (friction)
+		names.push_back("friction");
+	if (selfCollision)
+		names.push_back("self_collision");
+	if (pin)
+		names.push_back("pin");
+	if (bodyMotion)
+		names.push_back("body_motion");
+	return names;
+}
+
+Scene parseScene(const nlohmann::json& document, const std::string& path)
+{
+	const std::string baseDir = std::filesystem::path(path).parent_path().string();
+	Scene scene;
+	scene.path = path;
+	ObjectReader top(document, "", path, baseDir);
+	// Unknown top-level keys first: a wrong file (e.g. an ellipsoid set passed as a scene) is then reported by its
+	// foreign keys rather than by the first missing section.
+	const std::vector<std::string> sections = {"name",   "description", "body",    "collider", "garment",
+											   "material", "solver",    "effects", "render",   "output"};
+	for (auto it = document.begin(); it != document.end(); ++it)
+		if (std::find(sections.begin(), sections.end(), it.key()) == sections.end())
+			top.fail(it.key(), "unknown key (allowed here: " + ObjectReader::join(sections) + ")");
+	scene.name = top.string("name", std::filesystem::path(path).stem().string());
+	top.string("description", "");
+	scene.body = parseBody(top.child("body"));
+	scene.collider = parseCollider(top.get("collider"), top);
+	if (scene.collider.kind != ColliderKind::None && scene.body.ellipsoids.empty() && !scene.body.fit &&
+		scene.collider.kind != ColliderKind::MeshBvh)
+		top.fail("body", std::string("collider '") + toString(scene.collider.kind) +
+							 "' needs fitted ellipsoids: give body.ellipsoids or body.fit");
+	scene.garment = parseGarment(top.child("garment"));
+	if (top.has("material"))
+		scene.material = parseMaterial(top.child("material"));
+	if (top.has("solver"))
+		scene.solver = parseSolver(top.child("solver"));
+	if (top.has("effects"))
+		parseEffects(top.get("effects"), "effects", scene, path, baseDir);
+	if (top.has("render"))
+	{
+		ObjectReader r = top.child("render");
+		scene.render.width = r.integer("width", scene.render.width, 2, 8192);
+		scene.render.height = r.integer("height", scene.render.height, 1, 8192);
+		scene.render.showEllipsoids = r.string("show", "body", {"body", "ellipsoids"}) == "ellipsoids";
+		r.finish();
+	}
+	if (top.has("output"))
+	{
+		ObjectReader r = top.child("output");
+		scene.frameEvery = r.integer("frame_every", scene.frameEvery, 1, 1000000);
+		scene.sampleEvery = r.integer("sample_every", scene.sampleEvery, 1, 1000000);
+		r.finish();
+	}
+	top.finish();
+	return scene;
+}
+
+Scene loadScene(const std::string& path)
+{
+	std::ifstream in(path);
+	if (!in)
+		throw FormatError(path + ": cannot open scene file");
+	json document;
+	try
+	{
+		document = json::parse(in, nullptr, true, /*ignore_comments=*/true);
+	}
+	catch (const json::parse_error& e)
+	{
+		throw FormatError(path + ": invalid JSON at byte " + std::to_string(e.byte) + ": " + e.what());
+	}
+	return parseScene(document, path);
+}
+
+} // namespace bodyfit::drape

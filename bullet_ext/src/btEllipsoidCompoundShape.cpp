@@ -1,0 +1,536 @@
+/*
+bodyfit: Bullet extension for ellipsoid body colliders. See btEllipsoidCompoundShape.h.
+*/
+
+#include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
+
+#include <new>
+
+namespace
+{
+
+/// Grid cells list the ellipsoids meeting the cell grown by this fraction of a cell on every side (see the header):
+/// a cloth node's path box (its step plus the skin) almost always fits in one grown cell, so the collider reads one
+/// list. A quarter of a 5.6 cm cell (1.4 cm for a 1.8 m body) covers steps of 0.8 m/s at 60 Hz from anywhere in
+/// the cell; larger dilations lengthen every list.
+const double kCellDilation = 0.25;
+
+/// The wide lists: the cell grown by a whole cell on every side (a 3 x 3 x 3 block), for path boxes that leave the
+/// grown cell (fast nodes, cell corners) but not the block.
+const double kWideCellDilation = 1.0;
+
+/// Columns orthonormalised (Gram-Schmidt, column 0 first) and det +1. A degenerate input becomes the identity.
+btMatrix3x3 sanitizeBasis(const btMatrix3x3& basis)
+{
+	btVector3 c0 = basis.getColumn(0);
+	btVector3 c1 = basis.getColumn(1);
+	const btVector3 c2in = basis.getColumn(2);
+	const btScalar l0 = c0.length();
+	if (!(l0 > SIMD_EPSILON) || !(l0 < btScalar(BT_LARGE_FLOAT)))
+		return btMatrix3x3::getIdentity();
+	c0 /= l0;
+	c1 -= c0 * c0.dot(c1);
+	btScalar l1 = c1.length();
+	if (!(l1 > SIMD_EPSILON) || !(l1 < btScalar(BT_LARGE_FLOAT)))
+	{
+		btVector3 p, q;
+		btPlaneSpace1(c0, p, q);
+		c1 = p;
+		l1 = c1.length();
+	}
+	c1 /= l1;
+	btVector3 c2 = c0.cross(c1);
+	if (c2.dot(c2in) < btScalar(0))
+	{
+		// A reflection was given: the ellipsoid is symmetric, so flipping an axis describes the same set.
+		c1 = -c1;
+		c2 = c0.cross(c1);
+	}
+	btMatrix3x3 out;
+	out.setValue(c0.x(), c1.x(), c2.x(), c0.y(), c1.y(), c2.y(), c0.z(), c1.z(), c2.z());
+	return out;
+}
+
+bool isUniform(const btVector3& s)
+{
+	return s.x() == s.y() && s.y() == s.z();
+}
+
+bool transformsEqual(const btTransform& a, const btTransform& b)
+{
+	const btMatrix3x3& ba = a.getBasis();
+	const btMatrix3x3& bb = b.getBasis();
+	return a.getOrigin() == b.getOrigin() && ba[0] == bb[0] && ba[1] == bb[1] && ba[2] == bb[2];
+}
+
+} // namespace
+
+btEllipsoidCompoundShape::btEllipsoidCompoundShape(btScalar childMargin)
+	: btCompoundShape(true, 0), m_childMargin(childMargin), m_analyticRevision(0)
+{
+}
+
+btEllipsoidCompoundShape::~btEllipsoidCompoundShape()
+{
+	for (int i = 0; i < m_children.size(); ++i)
+	{
+		btCollisionShape* child = m_children[i].m_childShape;
+		if (child)
+		{
+			child->~btCollisionShape();
+			btAlignedFree(child);
+		}
+	}
+}
+
+int btEllipsoidCompoundShape::addEllipsoid(const btVector3& center, const btMatrix3x3& basis, const btVector3& semiAxes)
+{
+	const int index = m_ellipsoids.size();
+	m_unscaledCenters.push_back(center);
+	m_unscaledBases.push_back(sanitizeBasis(basis));
+	btEllipsoidShape probe(semiAxes, m_childMargin); // sanitises the semi-axes the same way the child does
+	m_unscaledSemiAxes.push_back(probe.getSemiAxes());
+	m_ellipsoids.expand();
+
+	void* mem = btAlignedAlloc(sizeof(btEllipsoidShape), 16);
+	btEllipsoidShape* child = new (mem) btEllipsoidShape(probe.getSemiAxes(), m_childMargin);
+	btTransform identity;
+	identity.setIdentity();
+	addChildShape(identity, child);
+	applyScaledGeometry(index, true);
+	++m_analyticRevision;
+	return index;
+}
+
+void btEllipsoidCompoundShape::setEllipsoid(int index, const btVector3& center, const btMatrix3x3& basis,
+										   const btVector3& semiAxes)
+{
+	btAssert(index >= 0 && index < m_ellipsoids.size());
+	if (index < 0 || index >= m_ellipsoids.size())
+		return;
+	m_unscaledCenters[index] = center;
+	m_unscaledBases[index] = sanitizeBasis(basis);
+	btEllipsoidShape probe(semiAxes, m_childMargin);
+	m_unscaledSemiAxes[index] = probe.getSemiAxes();
+	applyScaledGeometry(index, true);
+	++m_analyticRevision;
+}
+
+void btEllipsoidCompoundShape::removeEllipsoid(int index)
+{
+	btAssert(index >= 0 && index < m_ellipsoids.size());
+	if (index < 0 || index >= m_ellipsoids.size())
+		return;
+	btCollisionShape* child = m_children[index].m_childShape;
+	removeChildShapeByIndex(index); // swaps the last child into index
+	const int last = m_ellipsoids.size() - 1;
+	m_ellipsoids[index] = m_ellipsoids[last];
+	m_unscaledCenters[index] = m_unscaledCenters[last];
+	m_unscaledBases[index] = m_unscaledBases[last];
+	m_unscaledSemiAxes[index] = m_unscaledSemiAxes[last];
+	m_ellipsoids.pop_back();
+	m_unscaledCenters.pop_back();
+	m_unscaledBases.pop_back();
+	m_unscaledSemiAxes.pop_back();
+	if (child)
+	{
+		child->~btCollisionShape();
+		btAlignedFree(child);
+	}
+	recalculateLocalAabb();
+	++m_analyticRevision;
+}
+
+void btEllipsoidCompoundShape::removeChildShape(btCollisionShape* shape)
+{
+	for (int i = m_children.size() - 1; i >= 0; --i)
+		if (m_children[i].m_childShape == shape)
+			removeEllipsoid(i);
+}
+
+void btEllipsoidCompoundShape::applyScaledGeometry(int index, bool recalcAabb)
+{
+	// Affine image of {p : |diag(1/a) R^T (p - c)| <= 1} under p -> S p:
+	// centre S c, matrix Q' = S^-1 R diag(1/a^2) R^T S^-1 = R' diag(1/a'^2) R'^T.
+	const btVector3& s = m_localScaling;
+	const btVector3& a = m_unscaledSemiAxes[index];
+	const btMatrix3x3& r = m_unscaledBases[index];
+	btVector3 scaledAxes;
+	btMatrix3x3 scaledBasis;
+	if (isUniform(s))
+	{
+		scaledAxes = a * s.x();
+		scaledBasis = r;
+	}
+	else
+	{
+		const btVector3 invA2(btScalar(1) / (a.x() * a.x()), btScalar(1) / (a.y() * a.y()),
+							  btScalar(1) / (a.z() * a.z()));
+		const btMatrix3x3 invS = btMatrix3x3::getIdentity().scaled(btVector3(1, 1, 1) / s);
+		btMatrix3x3 q = invS * r.scaled(invA2) * r.transpose() * invS;
+		btMatrix3x3 rot;
+		q.diagonalize(rot, btScalar(1e-12), 64);
+		for (int i = 0; i < 3; ++i)
+			scaledAxes[i] = btScalar(1) / btSqrt(btMax(q[i][i], SIMD_EPSILON));
+		scaledBasis = sanitizeBasis(rot);
+	}
+	btEllipsoidShape* child = getEllipsoidShape(index);
+	child->setSemiAxes(scaledAxes);
+	btTransform t(scaledBasis, m_unscaledCenters[index] * s);
+	updateChildTransform(index, t, recalcAabb);
+
+	btEllipsoidLocalData& e = m_ellipsoids[index];
+	e.m_center = t.getOrigin();
+	e.m_basis = scaledBasis;
+	e.m_semiAxes = child->getSemiAxes();
+	computeLocalData(index);
+}
+
+void btEllipsoidCompoundShape::computeLocalData(int index)
+{
+	btEllipsoidLocalData& e = m_ellipsoids[index];
+	const btVector3 invA2(btScalar(1) / (e.m_semiAxes.x() * e.m_semiAxes.x()),
+						  btScalar(1) / (e.m_semiAxes.y() * e.m_semiAxes.y()),
+						  btScalar(1) / (e.m_semiAxes.z() * e.m_semiAxes.z()));
+	e.m_Q = e.m_basis.scaled(invA2) * e.m_basis.transpose();
+	btVector3 extent;
+	for (int i = 0; i < 3; ++i)
+		extent[i] = (e.m_basis[i] * e.m_semiAxes).length();
+	e.m_aabbMin = e.m_center - extent;
+	e.m_aabbMax = e.m_center + extent;
+}
+
+void btEllipsoidCompoundShape::setLocalScaling(const btVector3& scaling)
+{
+	btVector3 s = scaling.absolute();
+	for (int i = 0; i < 3; ++i)
+		if (!(s[i] > SIMD_EPSILON) || !(s[i] < btScalar(BT_LARGE_FLOAT)))
+		{
+			btAssert(!"btEllipsoidCompoundShape: local scaling must be positive and finite");
+			s[i] = btScalar(1);
+		}
+	m_localScaling = s;
+	for (int i = 0; i < m_ellipsoids.size(); ++i)
+		applyScaledGeometry(i, false);
+	recalculateLocalAabb();
+	++m_analyticRevision;
+}
+
+btScalar btEllipsoidCompoundShape::zeta(int index, const btVector3& localPoint) const
+{
+	const btEllipsoidLocalData& e = m_ellipsoids[index];
+	const btVector3 d = localPoint - e.m_center;
+	return d.dot(e.m_Q * d);
+}
+
+btScalar btEllipsoidCompoundShape::minZeta(const btVector3& localPoint, int* which) const
+{
+	btScalar best = SIMD_INFINITY;
+	int bestIndex = -1;
+	for (int i = 0; i < m_ellipsoids.size(); ++i)
+	{
+		const btScalar z = zeta(i, localPoint);
+		if (z < best)
+		{
+			best = z;
+			bestIndex = i;
+		}
+	}
+	if (which)
+		*which = bestIndex;
+	return best;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// btEllipsoidWorldCache
+
+btEllipsoidWorldCache::btEllipsoidWorldCache()
+	: m_shape(0),
+	  m_revision(-1),
+	  m_invCell(btScalar(1)),
+	  m_cell(btScalar(1)),
+	  m_cellDilation(btScalar(0)),
+	  m_wideDilation(btScalar(0)),
+	  m_stampCounter(0)
+{
+	m_transform.setIdentity();
+	m_inverse.setIdentity();
+	m_aabbMin.setValue(0, 0, 0);
+	m_aabbMax.setValue(0, 0, 0);
+	m_gridOrigin.setValue(0, 0, 0);
+	m_dims[0] = m_dims[1] = m_dims[2] = 0;
+}
+
+bool btEllipsoidWorldCache::update(const btEllipsoidCompoundShape* shape, const btTransform& bodyTransform)
+{
+	const bool sameShape = shape == m_shape && shape && shape->getAnalyticRevision() == m_revision;
+	if (sameShape && transformsEqual(bodyTransform, m_transform))
+		return false;
+	m_shape = shape;
+	m_transform = bodyTransform;
+	m_inverse = bodyTransform.inverse();
+	const int n = shape ? shape->getNumEllipsoids() : 0;
+	m_revision = shape ? shape->getAnalyticRevision() : -1;
+	m_entries.resize(n);
+	m_boxes.resize(2 * n);
+	m_packed.resize(kPackedStride * btMax(n, 1));
+	const btMatrix3x3& bb = bodyTransform.getBasis();
+	for (int i = 0; i < n; ++i)
+	{
+		const btEllipsoidLocalData& e = shape->getEllipsoid(i);
+		Entry& w = m_entries[i];
+		const btMatrix3x3 r = bb * e.m_basis;
+		const btVector3 invA(btScalar(1) / e.m_semiAxes.x(), btScalar(1) / e.m_semiAxes.y(),
+							 btScalar(1) / e.m_semiAxes.z());
+		w.m_center = bodyTransform * e.m_center;
+		w.m_unwhiten = r.scaled(e.m_semiAxes); // R diag(a)
+		w.m_whiten = r.transpose();           // then rows scaled by 1/a
+		w.m_whiten[0] *= invA.x();
+		w.m_whiten[1] *= invA.y();
+		w.m_whiten[2] *= invA.z();
+		btVector3 extent(w.m_unwhiten[0].length(), w.m_unwhiten[1].length(), w.m_unwhiten[2].length());
+		w.m_aabbMin = w.m_center - extent;
+		w.m_aabbMax = w.m_center + extent;
+		m_boxes[2 * i] = w.m_aabbMin;
+		m_boxes[2 * i + 1] = w.m_aabbMax;
+		btScalar* pk = &m_packed[kPackedStride * i];
+		for (int k = 0; k < 3; ++k)
+		{
+			pk[k] = w.m_center[k];
+			for (int j = 0; j < 3; ++j)
+				pk[4 + 4 * j + k] = w.m_whiten[k][j];
+		}
+		pk[3] = pk[7] = pk[11] = pk[15] = btScalar(0);
+		if (i == 0)
+		{
+			m_aabbMin = w.m_aabbMin;
+			m_aabbMax = w.m_aabbMax;
+		}
+		else
+		{
+			m_aabbMin.setMin(w.m_aabbMin);
+			m_aabbMax.setMax(w.m_aabbMax);
+		}
+	}
+	if (n == 0)
+	{
+		m_aabbMin.setValue(0, 0, 0);
+		m_aabbMax.setValue(0, 0, 0);
+	}
+	if (!sameShape)
+		buildGrid(); // the grid lives in the body frame: a moving body does not rebuild it
+	return true;
+}
+
+void btEllipsoidWorldCache::buildGrid()
+{
+	const int n = m_shape ? m_shape->getNumEllipsoids() : 0;
+	m_cellStart.resize(0);
+	m_cellItems.resize(0);
+	m_wideStart.resize(0);
+	m_wideItems.resize(0);
+	m_stamp.resize(n);
+	for (int i = 0; i < n; ++i)
+		m_stamp[i] = 0;
+	m_stampCounter = 0;
+	if (n == 0)
+	{
+		m_dims[0] = m_dims[1] = m_dims[2] = 0;
+		return;
+	}
+	btVector3 lo = m_shape->getEllipsoid(0).m_aabbMin, hi = m_shape->getEllipsoid(0).m_aabbMax;
+	for (int i = 1; i < n; ++i)
+	{
+		lo.setMin(m_shape->getEllipsoid(i).m_aabbMin);
+		hi.setMax(m_shape->getEllipsoid(i).m_aabbMax);
+	}
+	// About 32 cells along the longest side of the compound's box (5.6 cm for a 1.8 m body; the arrays stay in L1):
+	// a node on the body then meets one to three ellipsoids. Built once per compound revision, in its frame.
+	const btVector3 size = hi - lo;
+	const btScalar longest = btMax(size[size.maxAxis()], btScalar(1e-3));
+	const btScalar cell = longest / btScalar(kGridCellsLongestSide);
+	m_cell = cell;
+	m_invCell = btScalar(1) / cell;
+	m_gridOrigin = lo;
+	m_cellDilation = btScalar(kCellDilation);
+	m_wideDilation = btScalar(kWideCellDilation);
+	for (int k = 0; k < 3; ++k)
+		m_dims[k] = btMax(1, btMin(int(kGridCellsLongestSide), int(size[k] * m_invCell) + 1));
+	buildLists(m_cellDilation, m_cellStart, m_cellItems);
+	buildLists(m_wideDilation, m_wideStart, m_wideItems);
+}
+
+void btEllipsoidWorldCache::buildLists(btScalar dilation, btAlignedObjectArray<int>& start,
+									   btAlignedObjectArray<int>& items) const
+{
+	const int n = m_shape->getNumEllipsoids();
+	const btScalar cell = m_cell;
+	const int cells = m_dims[0] * m_dims[1] * m_dims[2];
+	// A cell lists an ellipsoid if the ellipsoid may meet the cell grown by `dilation` cells on every side (the
+	// "grown cell", a cube of half-size h = cell (1/2 + dilation) around the cell centre m). Three conservative
+	// tests, each necessary for a meeting:
+	//  1. the ellipsoid's box overlaps the grown cell;
+	//  2. the grown cell's circumscribed sphere (radius rc = h sqrt(3)) meets it, i.e. m is in E + ball(rc). Tested
+	//     in the norm |x|_G of the ellipsoid G with semi-axes a + rc: for x = e + d, e in E, |d| <= rc, the triangle
+	//     inequality gives |x|_G <= max_k a_k / (a_k + rc) + rc / (min_k a_k + rc). (G alone does not contain
+	//     E + ball(rc) for thin ellipsoids: the rim of a 1000:1 disc displaced along its normal leaves G, which lost
+	//     candidates in the collider's property test.)
+	//  3. in E's whitened coordinates u = W (p - c) the cube is a parallelepiped around W (m - c) whose points are
+	//     within r = h max_s |W s| of it (s over the corner directions (+-1, +-1, +-1)), so it meets the unit ball
+	//     only if |W (m - c)| <= 1 + r (tighter than 2 along the long axes of elongated ellipsoids).
+	// Everything is relative to the grid origin (no large coordinates 1 km from the origin); the tests get a slack
+	// for rounding.
+	const btScalar half = cell * (btScalar(0.5) + dilation);
+	const btScalar rc = half * btSqrt(btScalar(3));
+	const btScalar slack = cell * btScalar(1e-4);
+
+	start.resize(cells + 1);
+	for (int c = 0; c <= cells; ++c)
+		start[c] = 0;
+	btAlignedObjectArray<int> cursor;
+	for (int pass = 0; pass < 2; ++pass)
+	{
+		if (pass == 1)
+		{
+			for (int c = 0; c < cells; ++c)
+				start[c + 1] += start[c];
+			items.resize(start[cells]);
+			cursor.resize(cells);
+			for (int c = 0; c < cells; ++c)
+				cursor[c] = start[c];
+		}
+		for (int i = 0; i < n; ++i)
+		{
+			const btEllipsoidLocalData& e = m_shape->getEllipsoid(i);
+			const btVector3 grown = e.m_semiAxes + btVector3(rc, rc, rc);
+			btMatrix3x3 whitenGrown = e.m_basis.transpose();
+			btMatrix3x3 whiten = e.m_basis.transpose();
+			for (int k = 0; k < 3; ++k)
+			{
+				whitenGrown[k] *= btScalar(1) / grown[k];
+				whiten[k] *= btScalar(1) / e.m_semiAxes[k];
+			}
+			const btScalar alpha = btMax(btMax(e.m_semiAxes.x() / grown.x(), e.m_semiAxes.y() / grown.y()),
+										 e.m_semiAxes.z() / grown.z());
+			const btScalar beta = rc / (e.m_semiAxes[e.m_semiAxes.minAxis()] + rc);
+			const btScalar limit2 = (alpha + beta) * (alpha + beta) * btScalar(1.0001); // + rounding slack
+			btScalar reach = btScalar(0);
+			for (int corner = 0; corner < 4; ++corner)
+			{
+				const btVector3 s(btScalar(1), (corner & 1) ? btScalar(-1) : btScalar(1),
+								  (corner & 2) ? btScalar(-1) : btScalar(1));
+				reach = btMax(reach, (whiten * s).length());
+			}
+			const btScalar limitW = btScalar(1) + half * reach;
+			const btScalar limitW2 = limitW * limitW * btScalar(1.0001); // + rounding slack
+			const btVector3 centreRel = e.m_center - m_gridOrigin;
+			const btVector3 boxLo = e.m_aabbMin - m_gridOrigin, boxHi = e.m_aabbMax - m_gridOrigin;
+			const btVector3 boxMid = (boxLo + boxHi) * btScalar(0.5), boxHalf = (boxHi - boxLo) * btScalar(0.5);
+			int lo3[3], hi3[3];
+			for (int k = 0; k < 3; ++k)
+			{
+				const btScalar fLo = (boxLo[k] - half + cell * btScalar(0.5)) * m_invCell - btScalar(1e-3);
+				const btScalar fHi = (boxHi[k] + half - cell * btScalar(0.5)) * m_invCell + btScalar(1e-3);
+				lo3[k] = fLo > btScalar(0) ? btMin(int(fLo), m_dims[k] - 1) : 0;
+				hi3[k] = fHi > btScalar(0) ? btMin(int(fHi), m_dims[k] - 1) : 0;
+			}
+			for (int z = lo3[2]; z <= hi3[2]; ++z)
+				for (int y = lo3[1]; y <= hi3[1]; ++y)
+					for (int x = lo3[0]; x <= hi3[0]; ++x)
+					{
+						const btVector3 centre = btVector3(btScalar(x) + btScalar(0.5), btScalar(y) + btScalar(0.5),
+														   btScalar(z) + btScalar(0.5)) * cell;
+						const btVector3 gap = (centre - boxMid).absolute() - boxHalf;
+						if (gap.x() > half + slack || gap.y() > half + slack || gap.z() > half + slack)
+							continue;
+						if ((whitenGrown * (centre - centreRel)).length2() > limit2)
+							continue;
+						if ((whiten * (centre - centreRel)).length2() > limitW2)
+							continue;
+						const int c = (z * m_dims[1] + y) * m_dims[0] + x;
+						if (pass == 0)
+							++start[c + 1];
+						else
+							items[cursor[c]++] = i;
+					}
+		}
+	}
+}
+
+btScalar btEllipsoidWorldCache::zeta(int i, const btVector3& worldPoint) const
+{
+	const Entry& w = m_entries[i];
+	return (w.m_whiten * (worldPoint - w.m_center)).length2();
+}
+
+void btEllipsoidWorldCache::query(const btVector3& aabbMin, const btVector3& aabbMax, btAlignedObjectArray<int>& out) const
+{
+	out.resize(0);
+	const int n = m_entries.size();
+	if (n == 0)
+		return;
+	for (int k = 0; k < 3; ++k)
+		if (aabbMin[k] > m_aabbMax[k] || aabbMax[k] < m_aabbMin[k])
+			return;
+	// World box -> body-frame box (the 8 transformed corners), then the grid cells under it.
+	btVector3 localMin(SIMD_INFINITY, SIMD_INFINITY, SIMD_INFINITY), localMax = -localMin;
+	for (int corner = 0; corner < 8; ++corner)
+	{
+		const btVector3 p((corner & 1) ? aabbMax.x() : aabbMin.x(), (corner & 2) ? aabbMax.y() : aabbMin.y(),
+						  (corner & 4) ? aabbMax.z() : aabbMin.z());
+		const btVector3 l = m_inverse * p;
+		localMin.setMin(l);
+		localMax.setMax(l);
+	}
+	int lo[3], hi[3];
+	for (int k = 0; k < 3; ++k)
+	{
+		lo[k] = cellCoord(localMin[k], k);
+		hi[k] = cellCoord(localMax[k], k);
+	}
+	if (++m_stampCounter == 0)
+	{
+		for (int i = 0; i < n; ++i)
+			m_stamp[i] = 0;
+		m_stampCounter = 1;
+	}
+	for (int z = lo[2]; z <= hi[2]; ++z)
+		for (int y = lo[1]; y <= hi[1]; ++y)
+			for (int x = lo[0]; x <= hi[0]; ++x)
+			{
+				const int c = (z * m_dims[1] + y) * m_dims[0] + x;
+				for (int j = m_cellStart[c]; j < m_cellStart[c + 1]; ++j)
+				{
+					const int i = m_cellItems[j];
+					if (m_stamp[i] == m_stampCounter)
+						continue;
+					m_stamp[i] = m_stampCounter;
+					const Entry& w = m_entries[i];
+					if (aabbMin.x() > w.m_aabbMax.x() || aabbMax.x() < w.m_aabbMin.x() ||
+						aabbMin.y() > w.m_aabbMax.y() || aabbMax.y() < w.m_aabbMin.y() ||
+						aabbMin.z() > w.m_aabbMax.z() || aabbMax.z() < w.m_aabbMin.z())
+						continue;
+					out.push_back(i);
+				}
+			}
+}
+
+btScalar btEllipsoidWorldCache::minZeta(const btVector3& worldPoint, int* which) const
+{
+	btAlignedObjectArray<int> candidates;
+	query(worldPoint, worldPoint, candidates);
+	btScalar best = SIMD_INFINITY;
+	int bestIndex = -1;
+	for (int j = 0; j < candidates.size(); ++j)
+	{
+		const btScalar z = zeta(candidates[j], worldPoint);
+		if (z < best)
+		{
+			best = z;
+			bestIndex = candidates[j];
+		}
+	}
+	if (which)
+		*which = bestIndex;
+	return best;
+}

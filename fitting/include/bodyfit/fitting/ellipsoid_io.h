@@ -1,0 +1,53 @@
+#pragma once
+/// \file ellipsoid_io.h
+/// The ellipsoid-set JSON file of DESIGN.md sec. 2 ("format": "bodyfit.ellipsoids", "version": 1), read and
+/// written, and export of the ellipsoids as a triangle mesh for viewers.
+///
+/// Written fields: format, version, units ("m"), up ("+y"), source {mesh, vertices, height},
+/// params {mu_torso, mu_limbs, relative_to_height, sigma, max_ellipsoids, min_radius, recluster_group,
+/// cover_triangles, cover_spacing},
+/// ellipsoids [{region, center [x,y,z], rotation [w,x,y,z] (unit quaternion, w >= 0), axes [a,b,c] (semi-axes,
+/// metres, along the rotation's x, y, z columns), radial_error, max_radial_error, mean_distance, max_distance,
+/// vertices}], timing_ms {stage: ms, ...}, stats {count, mean_radial_error, max_radial_error, mean_distance,
+/// max_distance}, refinement {status, splits_accepted, splits_rejected}, warnings [..].
+/// Doubles are written with the shortest representation that parses back to the same double (bit-exact).
+///
+/// Read: format, version and ellipsoids are required; each ellipsoid needs region, center, rotation and axes. The
+/// error fields of an ellipsoid are optional (absent = NaN, "unknown", and omitted again when written back); the
+/// other top-level objects are optional and checked when present.
+
+#include "bodyfit/fitting/body_fitter.h"
+
+#include <string>
+
+namespace bodyfit
+{
+
+constexpr const char* kEllipsoidFormat = "bodyfit.ellipsoids";
+constexpr int kEllipsoidFormatVersion = 1;
+
+/// JSON text of `fit` (2-space indented).
+std::string toEllipsoidJson(const BodyFit& fit);
+
+/// Writes toEllipsoidJson(fit) to `path` (the directory must exist). \throws FormatError if it cannot be written.
+void writeEllipsoidJson(const std::string& path, const BodyFit& fit);
+
+/// Parses and validates an ellipsoid-set document. `name` is used in error messages (usually the file path).
+/// \throws FormatError "<name>: <field>: <problem>", e.g. "fit.json: ellipsoids[3].axes[1]: must be > 0 (got -0.01)".
+BodyFit parseEllipsoidJson(const std::string& text, const std::string& name = "<json>");
+
+/// Reads and validates a file. \throws FormatError (also for a missing or unreadable file), naming the file.
+BodyFit readEllipsoidJson(const std::string& path);
+
+/// The ellipsoids as one triangle mesh: a unit icosphere subdivided `subdivisions` times (0 = 20 triangles, each
+/// level x4; 2 = 320 triangles, 162 vertices per ellipsoid), mapped by x = c + R diag(axes) u. Optional per-vertex
+/// colours (regionColor of segmentation.h) are written into `colors`.
+TriMesh ellipsoidMesh(const std::vector<FittedEllipsoid>& ellipsoids, int subdivisions = 2,
+					  Eigen::MatrixX3d* colors = nullptr);
+
+/// Writes ellipsoidMesh(...) as OBJ or PLY (by extension, coloured by region) through saveTriMesh.
+/// \throws InvalidInputError for another extension, MeshLoadError if the file cannot be written.
+void exportEllipsoidMesh(const std::string& path, const std::vector<FittedEllipsoid>& ellipsoids,
+						 int subdivisions = 2);
+
+} // namespace bodyfit

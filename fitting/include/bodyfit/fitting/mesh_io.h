@@ -1,0 +1,72 @@
+#pragma once
+/// \file mesh_io.h
+/// Mesh input through assimp (OBJ, PLY, STL, glTF/GLB, FBX, ...) and the repairs every mesh gets:
+/// triangulate, convert to metres / +y up, weld duplicate vertices, drop degenerate faces, split components.
+
+#include "bodyfit/fitting/types.h"
+
+#include <string>
+#include <vector>
+
+namespace bodyfit
+{
+
+enum class UpAxis
+{
+	Y, ///< file is already +y up (no rotation)
+	Z, ///< file is +z up: rotated -90 degrees about x so that +z becomes +y
+};
+
+struct LoadOptions
+{
+	UpAxis up = UpAxis::Y;
+	double scale = 1.0;                    ///< multiply coordinates by this (0.01 for centimetres, 0.001 for mm)
+	double relativeWeldTolerance = 1e-6;   ///< vertices closer than this fraction of the bbox diagonal are merged
+};
+
+/// What loading found and repaired. Printed by the demos.
+struct MeshReport
+{
+	std::string path;
+	int fileVertices = 0;        ///< vertices as stored in the file (all meshes of the scene)
+	int fileFaces = 0;           ///< triangles after triangulation
+	int weldedVertices = 0;      ///< vertices removed by welding
+	int degenerateFaces = 0;     ///< zero-area / repeated-index faces dropped
+	int unreferencedVertices = 0;///< vertices used by no face, dropped
+	int components = 0;          ///< connected components of the repaired mesh
+	int droppedComponentVertices = 0; ///< vertices outside the largest component (not used for fitting)
+	double bboxDiagonal = 0.0;   ///< metres, after scale
+	double height = 0.0;         ///< y extent, metres, after up-axis conversion and scale
+	UpAxis up = UpAxis::Y;
+	double scale = 1.0;
+};
+
+struct LoadedMesh
+{
+	TriMesh mesh;      ///< largest connected component, repaired: what the fitter uses
+	TriMesh full;      ///< every component, repaired (e.g. for inside tests against the whole body)
+	MeshReport report;
+};
+
+/// Load, convert and repair a mesh file.
+/// \throws MeshLoadError if the file is missing, unreadable, empty, truncated or not a mesh format assimp reads.
+/// \throws InvalidInputError if coordinates are non-finite or fewer than 4 distinct points remain.
+LoadedMesh loadTriMesh(const std::string& path, const LoadOptions& options = {});
+
+/// Repairs an in-memory mesh exactly as loadTriMesh does (weld, degenerate faces, unreferenced vertices).
+/// \throws InvalidInputError as loadTriMesh.
+LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options = {}, const std::string& name = "<memory>");
+
+/// Checks the preconditions of the fitter: finite coordinates, >= 4 distinct points, >= 1 face, valid indices.
+/// \throws InvalidInputError naming the first violated condition.
+void requireUsable(const TriMesh& mesh, const std::string& name = "<mesh>");
+
+/// Component id per vertex (0 = the component with the most vertices), and the number of components.
+std::vector<int> connectedComponents(const TriMesh& mesh, int* count = nullptr);
+
+/// Writes an OBJ or PLY (by extension) with optional per-vertex colours (#V by 3, 0..1). Throws MeshLoadError.
+void saveTriMesh(const std::string& path, const TriMesh& mesh, const Eigen::MatrixX3d* colors = nullptr);
+
+const char* toString(UpAxis up);
+
+} // namespace bodyfit

@@ -1,0 +1,151 @@
+// bodyfit-fit command line: exit codes (0 ok, 2 bad input) and one-line errors, run on the built executable.
+
+#include "bodyfit/fitting/ellipsoid_io.h"
+#include "support/paths.h"
+
+#include <catch2/catch.hpp>
+
+#include <unistd.h>
+#include <nlohmann/json.hpp>
+
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace
+{
+
+namespace fs = std::filesystem;
+
+struct Run
+{
+	int status = -1;
+	std::string out, err;
+};
+
+fs::path scratch()
+{
+	// One directory per process: ctest runs the test cases of this file in parallel processes.
+	const fs::path dir = fs::temp_directory_path() / ("bodyfit_test_cli_" + std::to_string(::getpid()));
+	fs::create_directories(dir);
+	return dir;
+}
+
+std::string slurp(const fs::path& p)
+{
+	std::ifstream in(p);
+	std::ostringstream s;
+	s << in.rdbuf();
+	return s.str();
+}
+
+/// Runs bodyfit-fit with `args` (already shell-quoted where needed) and captures exit status, stdout, stderr.
+Run run(const std::string& args)
+{
+	const fs::path out = scratch() / "stdout.txt", err = scratch() / "stderr.txt";
+	const std::string cmd = std::string("\"") + BODYFIT_FIT_EXE + "\" " + args + " > \"" + out.string() + "\" 2> \"" +
+							err.string() + "\"";
+	const int rc = std::system(cmd.c_str());
+	Run r;
+	r.status = WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+	r.out = slurp(out);
+	r.err = slurp(err);
+	return r;
+}
+
+std::string quoted(const std::string& s)
+{
+	return "\"" + s + "\"";
+}
+
+/// Bad input: exit 2, nothing on stdout, exactly one stderr line "bodyfit-fit: error: ..." containing `needle`.
+void checkBadInput(const std::string& args, const std::string& needle)
+{
+	const Run r = run(args);
+	CAPTURE(args, r.err);
+	CHECK(r.status == 2);
+	CHECK(r.out.empty());
+	CHECK(r.err.rfind("bodyfit-fit: error: ", 0) == 0);
+	CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+	CHECK(r.err.find(needle) != std::string::npos);
+}
+
+} // namespace
+
+TEST_CASE("cli: --help prints the usage and exits 0", "[fitting][cli]")
+{
+	const Run r = run("--help");
+	CHECK(r.status == 0);
+	CHECK(r.out.find("usage: bodyfit-fit MESH -o OUT.json") != std::string::npos);
+	CHECK(r.out.find("--max-ellipsoids") != std::string::npos);
+	CHECK(r.err.empty());
+}
+
+TEST_CASE("cli: bad arguments and bad files exit 2 with a one-line reason", "[fitting][cli]")
+{
+	const std::string body = quoted(bodyfit_test::assetPath("male_young.4508v.obj"));
+	const std::string out = " -o " + quoted((scratch() / "bad.json").string());
+	checkBadInput("", "missing MESH");
+	checkBadInput(body, "missing -o");
+	checkBadInput(body + out + " --frobnicate", "unknown option --frobnicate");
+	checkBadInput(body + out + " --mu-torso abc", "--mu-torso: expected a number");
+	checkBadInput(body + out + " --mu-torso -0.1", "--mu-torso: -0.1 is out of range");
+	checkBadInput(body + out + " --mu-limbs 0", "--mu-limbs: 0 is out of range");
+	checkBadInput(body + out + " --max-ellipsoids 0", "--max-ellipsoids: 0 is out of range");
+	checkBadInput(body + out + " --max-ellipsoids 2.5", "--max-ellipsoids: expected an integer");
+	checkBadInput(body + out + " --up x", "--up: expected y|z");
+	checkBadInput(body + out + " --scale 0", "--scale: 0 is out of range");
+	checkBadInput(body + out + " --scale", "--scale needs a value");
+	checkBadInput(body + out + " --absolute --absolute", "--absolute given more than once");
+	checkBadInput(body + out + " --export-mesh x.stl", "must end in .obj or .ply");
+	checkBadInput(body + " extra.obj" + out, "unexpected argument");
+	checkBadInput(quoted(bodyfit_test::dataPath("does_not_exist.obj")) + out, "does_not_exist.obj");
+	checkBadInput(quoted(bodyfit_test::dataPath("garbage.bin")) + out, "garbage.bin");
+	checkBadInput(quoted(bodyfit_test::dataPath("nan_vertex.obj")) + out, "non-finite");
+	checkBadInput(quoted(bodyfit_test::dataPath("empty.obj")) + out, "empty");
+	// An output directory that cannot be created (its parent is a regular file).
+	std::ofstream(scratch() / "a_file") << "x";
+	checkBadInput(body + " -o " + quoted((scratch() / "a_file" / "sub" / "fit.json").string()), "cannot create");
+}
+
+TEST_CASE("cli: a fit writes readable JSON and the ellipsoid mesh, creating the directory", "[fitting][cli]")
+{
+	const fs::path dir = scratch() / "nested" / "out";
+	fs::remove_all(scratch() / "nested");
+	const std::string json = (dir / "fit.json").string();
+	const std::string ply = (dir / "fit.ply").string();
+	const std::string args = quoted(bodyfit_test::assetPath("male_young.4508v.obj")) + " -o " + quoted(json) +
+							 " --max-ellipsoids 40 --export-mesh " + quoted(ply);
+	const Run r = run(args);
+	CAPTURE(r.err);
+	REQUIRE(r.status == 0);
+	CHECK(r.out.find("ellipsoids") != std::string::npos);
+	CHECK(r.out.find("air gap") != std::string::npos);
+	const bodyfit::BodyFit fit = bodyfit::readEllipsoidJson(json);
+	CHECK(fit.ellipsoids.size() >= 1);
+	CHECK(fit.ellipsoids.size() <= 40);
+	CHECK(fit.source.mesh == "male_young.4508v.obj");
+	CHECK(fit.source.vertices == 4508);
+	CHECK(fit.timingMs("load") > 0.0);
+	CHECK(fs::file_size(ply) > 0);
+
+	// Same input, same options: the same ellipsoids (the timings differ).
+	const std::string json2 = (dir / "fit2.json").string();
+	REQUIRE(run(quoted(bodyfit_test::assetPath("male_young.4508v.obj")) + " -o " + quoted(json2) +
+				" --max-ellipsoids 40")
+				.status == 0);
+	CHECK(nlohmann::json::parse(slurp(json))["ellipsoids"] == nlohmann::json::parse(slurp(json2))["ellipsoids"]);
+
+	// --absolute: thresholds in metres are recorded as such.
+	const std::string json3 = (dir / "fit3.json").string();
+	REQUIRE(run(quoted(bodyfit_test::assetPath("male_young.4508v.obj")) + " -o " + quoted(json3) +
+				" --absolute --mu-torso 0.03 --mu-limbs 0.02")
+				.status == 0);
+	const bodyfit::BodyFit abs = bodyfit::readEllipsoidJson(json3);
+	CHECK_FALSE(abs.params.relativeToHeight);
+	CHECK(abs.params.muTorso == 0.03);
+}
+
