@@ -1,4 +1,4 @@
-// bodyfit-drape: runs a drape scene headless (docs/DESIGN.md, "bodyfit-drape").
+// bodyfit-drape: runs a drape scene headless (docs/DESIGN.md sec. 6).
 //   bodyfit-drape SCENE.json [--body MESH] [--ellipsoids FIT.json] [--collider KIND] [--steps N]
 //                 [--frames DIR] [--metrics OUT.json] [--png OUT.png] [--show body|ellipsoids]
 // Exit status: 0 success, 2 bad input (one-line reason on stderr), 1 failure while running or writing.

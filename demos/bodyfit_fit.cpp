@@ -1,4 +1,4 @@
-// bodyfit-fit: fit ellipsoids to a body mesh and write them as JSON (DESIGN.md sec. 6).
+// bodyfit-fit: fit ellipsoids to a body mesh and write them as JSON (docs/DESIGN.md sec. 6).
 #include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/ellipsoid_io.h"
 #include "bodyfit/fitting/mesh_io.h"

@@ -4,7 +4,7 @@
 // vertex-to-own-ellipsoid distance ("air gap", mean and max), and the median fitting time (true distances off, as in
 // a timing run of bodyfit-fit without the report; wall and thread-CPU time), with the k-means / MVEE shares of one
 // run. "gap" here is the distance from each vertex to the surface of its own ellipsoid, not the union air gap of
-// DESIGN.md sec. 5.
+// docs/DESIGN.md sec. 5.
 #include "bench/bench_common.h"
 
 #include "bodyfit/fitting/body_fitter.h"

@@ -1,4 +1,4 @@
-// Pruned bisecting K-means refinement with MVEEs (paper sec. 3.3; DESIGN.md sec. 2). See body_fitter.h.
+// Pruned bisecting K-means refinement with MVEEs (paper sec. 3.3; docs/DESIGN.md sec. 2). See body_fitter.h.
 #include "bodyfit/fitting/body_fitter.h"
 
 #include "bodyfit/fitting/errors.h"

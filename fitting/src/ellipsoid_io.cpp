@@ -1,4 +1,4 @@
-// Ellipsoid-set JSON (DESIGN.md sec. 2) and the triangle-mesh export. See ellipsoid_io.h.
+// Ellipsoid-set JSON (docs/DESIGN.md sec. 2) and the triangle-mesh export. See ellipsoid_io.h.
 #include "bodyfit/fitting/ellipsoid_io.h"
 
 #include "bodyfit/fitting/errors.h"
@@ -17,7 +17,7 @@ namespace bodyfit
 namespace
 {
 
-using Json = nlohmann::ordered_json; // keeps the key order of DESIGN.md when writing and the file's when reading
+using Json = nlohmann::ordered_json; // keeps the key order of ellipsoid_io.h when writing and the file's when reading
 
 /// Tolerance on |q| - 1 for a stored quaternion: files are written with round-trip precision, so a unit quaternion
 /// read back has |q| = 1 within a few ulp; 1e-6 still accepts files written by tools that print ~7 digits.

@@ -1,4 +1,4 @@
-// Fit-quality metrics of a union of ellipsoids against a body mesh (DESIGN.md sec. 5): air gap, skin outside the
+// Fit-quality metrics of a union of ellipsoids against a body mesh (docs/DESIGN.md sec. 5): air gap, skin outside the
 // union, voxel IoU. See fit_quality.h for the definitions.
 #include "bodyfit/fitting/fit_quality.h"
 

@@ -1,5 +1,5 @@
 /// \file segmentation.cpp
-/// Semantic segmentation of a standing human body (paper sec. 2; DESIGN.md sec. 2).
+/// Semantic segmentation of a standing human body (paper sec. 2; docs/DESIGN.md sec. 2).
 
 #include "bodyfit/fitting/segmentation.h"
 

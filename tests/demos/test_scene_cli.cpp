@@ -1,4 +1,4 @@
-// bodyfit-drape end to end: a short run of a bundled scene writes the metrics JSON (DESIGN.md sec. 6 fields), the
+// bodyfit-drape end to end: a short run of a bundled scene writes the metrics JSON (docs/DESIGN.md sec. 6 fields), the
 // two-view PNG of the scene's size and the OBJ frames; bad input exits 2 with a one-line reason naming the problem.
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>

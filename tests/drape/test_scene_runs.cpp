@@ -1,5 +1,5 @@
 // Each bundled scene runs a short while with the ellipsoid collider: no NaN, no node inside an ellipsoid, and the
-// metrics JSON carries the fields of DESIGN.md sec. 6.
+// metrics JSON carries the fields of docs/DESIGN.md sec. 6.
 #include "bodyfit/drape/simulation.h"
 
 #include <catch2/catch.hpp>

@@ -151,7 +151,7 @@ TEST_CASE("robust catalogue: millimetres and z-up are converted only when asked"
 TEST_CASE("robust catalogue: a non-human mesh is not segmented and does not crash", "[robust][inputs][mesh]")
 {
 	// A sphere (icosphere of 642 vertices): segmentation reports failure with a reason and labels everything Whole;
-	// the generic fitting path (one region) then applies (DESIGN.md sec. 2).
+	// the generic fitting path (one region) then applies (docs/DESIGN.md sec. 2).
 	FittedEllipsoid sphere;
 	sphere.ellipsoid.radii = Eigen::Vector3d(0.3, 0.3, 0.3);
 	const TriMesh ball = ellipsoidMesh({sphere}, 3);

@@ -1,4 +1,4 @@
-// Semantic segmentation (paper sec. 2, DESIGN.md sec. 2) on the bundled bodies, posed bodies, a synthetic
+// Semantic segmentation (paper sec. 2, docs/DESIGN.md sec. 2) on the bundled bodies, posed bodies, a synthetic
 // arms-down pose and non-human meshes: coverage, connectivity, feature points, mirror symmetry, re-indexing and
 // pose invariance, and the clean fallback.
 #include "bodyfit/fitting/geodesics.h"

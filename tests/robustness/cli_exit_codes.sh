@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# CLI contract on bad input (DESIGN.md sec. 6, docs/ROBUSTNESS.md): every case exits with the documented code and,
+# CLI contract on bad input (docs/DESIGN.md sec. 6, docs/ROBUSTNESS.md): every case exits with the documented code and,
 # on failure, prints exactly one line on stderr that names the problem.
 # usage: cli_exit_codes.sh BODYFIT_FIT BODYFIT_DRAPE TEST_DATA_DIR   (registered with CTest when the demos are built)
 set -u

@@ -1,7 +1,7 @@
 #pragma once
 /// \file body_fitter.h
 /// The fitting pipeline after segmentation: initial clusters per region, pruned bisecting K-means refinement with
-/// MVEEs (paper sec. 3.3, made precise in DESIGN.md sec. 2), and the error report of the result.
+/// MVEEs (paper sec. 3.3, made precise in docs/DESIGN.md sec. 2), and the error report of the result.
 ///
 /// Groups. Torso regions form one group: k starts at the number of torso parts present (6 after a successful
 /// segmentation), initialised with the means of those parts. Every other region (head, each limb part, or
@@ -14,7 +14,7 @@
 /// `reclusterGroup`), refit the MVEEs of the clusters whose points changed. The split is accepted when it lowers
 /// the worst E_j or the summed (vertex-weighted) E_j of the clusters it changed; otherwise the group is left as it
 /// was and the next axis is tried, then a four-way split across the two longest axes; when none helps, the
-/// ellipsoid is frozen (DESIGN.md's guarantee: a split that does not lower the error is rejected). A split that
+/// ellipsoid is frozen (docs/DESIGN.md sec. 2: a split that does not lower the error is rejected). A split that
 /// leaves a cluster empty is rejected. Stops when every ellipsoid meets its threshold or is frozen, at
 /// `maxEllipsoids`, or after `maxSplits` attempts. Termination is guaranteed: every attempt adds at least one
 /// ellipsoid (bounded by the budget) or freezes one.

@@ -1,6 +1,6 @@
 #pragma once
 /// \file ellipsoid_io.h
-/// The ellipsoid-set JSON file of DESIGN.md sec. 2 ("format": "bodyfit.ellipsoids", "version": 1), read and
+/// The ellipsoid-set JSON file of docs/DESIGN.md sec. 6 ("format": "bodyfit.ellipsoids", "version": 1), read and
 /// written, and export of the ellipsoids as a triangle mesh for viewers.
 ///
 /// Written fields: format, version, units ("m"), up ("+y"), source {mesh, vertices, height},

@@ -1,6 +1,6 @@
 #pragma once
 /// \file fit_quality.h
-/// How well a union of ellipsoids stands in for a body mesh (DESIGN.md sec. 5, "Fit quality"):
+/// How well a union of ellipsoids stands in for a body mesh (docs/DESIGN.md sec. 5, "Fit quality"):
 ///   * air gap: distance from the union's outer surface to the skin. Points are sampled deterministically on every
 ///     ellipsoid surface (a spherical Fibonacci lattice mapped onto the ellipsoid, each sample weighted by its exact
 ///     area element so the statistics are per unit of surface area); samples inside another ellipsoid are not on the

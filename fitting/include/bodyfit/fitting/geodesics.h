@@ -1,7 +1,7 @@
 #pragma once
 /// \file geodesics.h
 /// Approximate geodesic distances on a triangle mesh: Dijkstra on the edge graph (the paper's approximation,
-/// DESIGN.md sec. 2), optionally with face-diagonal edges that shorten the metrication error.
+/// docs/DESIGN.md sec. 2), optionally with face-diagonal edges that shorten the metrication error.
 ///
 /// Face-diagonal edges: for two triangles (a, b, c) and (b, a, d) sharing the edge ab, the quad is unfolded into the
 /// plane; when the straight segment c-d crosses ab inside the edge (the unfolded quad is convex) it is a true path on

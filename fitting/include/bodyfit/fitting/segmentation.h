@@ -1,6 +1,6 @@
 #pragma once
 /// \file segmentation.h
-/// Semantic segmentation of a standing human body mesh into 15 body regions (paper sec. 2; DESIGN.md sec. 2).
+/// Semantic segmentation of a standing human body mesh into 15 body regions (paper sec. 2; docs/DESIGN.md sec. 2).
 /// "left" and "right" are the subject's own: the bundled bodies face +z, so the subject's left is +x.
 ///
 /// Method (6 Dijkstra runs on the edge graph with face diagonals, see geodesics.h):
@@ -89,7 +89,7 @@ struct Segmentation
 };
 
 /// Tunables of segmentBody. Proportions are fractions of the stature H or of a limb's geodesic length; the
-/// defaults come from Drillis & Contini via Winter (DESIGN.md sec. 2, notes sec. 4) and are refined per body by
+/// defaults come from Drillis & Contini via Winter (docs/DESIGN.md sec. 2) and are refined per body by
 /// the narrowest cross-section in a band around each predicted cut.
 struct SegmentationOptions
 {

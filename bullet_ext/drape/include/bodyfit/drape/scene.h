@@ -1,7 +1,7 @@
 #pragma once
 /// \file scene.h
 /// Drape scenes: a JSON file naming the body, the collider, the garment, the cloth material, the solver settings and
-/// the list of effects. Only listed effects are built and stepped (DESIGN.md sec. 4). Every unknown key and every
+/// the list of effects. Only listed effects are built and stepped (docs/DESIGN.md sec. 4). Every unknown key and every
 /// bad value is a bodyfit::FormatError whose one-line message names the file and the key path, e.g.
 /// `demos/scenes/skirt.json: effects[1].wind.velocity: expected an array of 3 numbers`.
 ///

@@ -1,7 +1,7 @@
 #pragma once
 /// \file simulation.h
 /// One drape run: the body (mesh + ellipsoids), the Bullet world with the scene's collider, the cloth, the listed
-/// effects, stepping with timing, and the cloth-quality metrics of DESIGN.md sec. 5.
+/// effects, stepping with timing, and the cloth-quality metrics of docs/DESIGN.md sec. 5.
 
 #include "bodyfit/drape/effects.h"
 #include "bodyfit/drape/garment.h"
@@ -114,7 +114,7 @@ private:
 };
 
 /// Runs `steps` steps, sampling the inside count every scene.sampleEvery steps and at the end, and returns the
-/// metrics JSON of DESIGN.md sec. 6 (steps, nodes, ms_per_step, collision_ms_per_step, nodes_inside_body,
+/// metrics JSON of docs/DESIGN.md sec. 6 (steps, nodes, ms_per_step, collision_ms_per_step, nodes_inside_body,
 /// max_nodes_inside_body, mean_contact_gap_m, nan_nodes, and more). `progress` (may be null) is called after
 /// every step with (done, total).
 nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps,
