@@ -1,6 +1,8 @@
 // The one fit pipeline: load -> repair -> segmentation (or the generic fallback) -> fit. See fit_pipeline.h.
 #include "bodyfit/fitting/fit_pipeline.h"
 
+#include "bodyfit/fitting/errors.h"
+
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
@@ -75,12 +77,34 @@ void finish(FitPipelineResult& result, Clock::time_point t0)
 	result.fit.setTiming("total", result.timings.total);
 }
 
+/// `fit` with its four lengths and their unit at the defaults (the state FitPipelineOptions::fit must be in).
+BodyFitOptions withDefaultLengths(BodyFitOptions fit)
+{
+	const BodyFitOptions defaults;
+	fit.muTorso = defaults.muTorso;
+	fit.muLimbs = defaults.muLimbs;
+	fit.sigma = defaults.sigma;
+	fit.coverSpacing = defaults.coverSpacing;
+	fit.relativeToHeight = defaults.relativeToHeight;
+	return fit;
+}
+
+/// A length set in FitPipelineOptions::fit would be ignored silently: it is an error instead.
+void requireLengthsNotInFit(const BodyFitOptions& fit)
+{
+	const BodyFitOptions d = withDefaultLengths(fit);
+	if (fit.muTorso != d.muTorso || fit.muLimbs != d.muLimbs || fit.sigma != d.sigma ||
+		fit.coverSpacing != d.coverSpacing || fit.relativeToHeight != d.relativeToHeight)
+		throw InvalidInputError("fit pipeline: thresholds, sigma and cover spacing go in FitPipelineOptions::lengths, "
+								"not in FitPipelineOptions::fit (FitPipelineOptions::from converts a BodyFitOptions)");
+}
+
 } // namespace
 
 FitPipelineOptions FitPipelineOptions::from(const BodyFitOptions& fit)
 {
 	FitPipelineOptions o;
-	o.fit = fit;
+	o.fit = withDefaultLengths(fit);
 	o.lengths = FitLengths::of(fit);
 	return o;
 }
@@ -101,6 +125,7 @@ Segmentation segmentForFit(const TriMesh& mesh, const FitPipelineOptions& option
 BodyFit fitSegmented(const TriMesh& mesh, const Segmentation& segmentation, const FitPipelineOptions& options,
 					 BodyFitOptions* resolvedOut)
 {
+	requireLengthsNotInFit(options.fit);
 	std::string heightWarning;
 	const double height = bodyHeight(mesh, options.fit.height, &heightWarning);
 	const BodyFitOptions resolved = resolveLengths(options.fit, options.lengths, height);
@@ -118,6 +143,7 @@ BodyFit fitSegmented(const TriMesh& mesh, const Segmentation& segmentation, cons
 
 FitPipelineResult fitMeshFile(const std::string& path, const FitPipelineOptions& options)
 {
+	requireLengthsNotInFit(options.fit); // before the work (fitSegmented checks again)
 	const Clock::time_point t0 = Clock::now();
 	LoadedMesh loaded = loadTriMesh(path, options.load);
 	const double loadMs = std::max(0.0, msSince(t0) - loaded.report.repairMs);
@@ -129,6 +155,7 @@ FitPipelineResult fitMeshFile(const std::string& path, const FitPipelineOptions&
 
 FitPipelineResult fitMesh(const TriMesh& mesh, const FitPipelineOptions& options, const std::string& name)
 {
+	requireLengthsNotInFit(options.fit); // before the work (fitSegmented checks again)
 	const Clock::time_point t0 = Clock::now();
 	FitPipelineResult result = fitLoaded(repairMesh(mesh, options.load, name), options, name, 0.0);
 	finish(result, t0);

@@ -208,4 +208,21 @@ TEST_CASE("fit_pipeline: bad input throws with a one-line reason", "[fitting][fi
 	FitPipelineOptions o;
 	o.lengths.muTorso = Length::inMetres(-0.01);
 	CHECK_THROWS_WITH(fitMeshFile(bodyPath(), o), Catch::Contains("mu_torso must be finite and > 0"));
+
+	// A length set in the fit options instead of the lengths would be ignored: it is refused.
+	FitPipelineOptions misplaced;
+	misplaced.fit.muTorso = 0.02;
+	CHECK_THROWS_WITH(fitMeshFile(bodyPath(), misplaced), Catch::Contains("go in FitPipelineOptions::lengths"));
+	misplaced = FitPipelineOptions();
+	misplaced.fit.relativeToHeight = false;
+	CHECK_THROWS_AS(fitMeshFile(bodyPath(), misplaced), InvalidInputError);
+	// from() moves them where they belong.
+	BodyFitOptions direct;
+	direct.muTorso = 0.02;
+	direct.relativeToHeight = false;
+	const FitPipelineOptions converted = FitPipelineOptions::from(direct);
+	CHECK(converted.lengths.muTorso.value == 0.02);
+	CHECK_FALSE(converted.lengths.muTorso.relativeToHeight);
+	CHECK(converted.fit.muTorso == BodyFitOptions().muTorso);
+	CHECK(converted.fit.relativeToHeight);
 }

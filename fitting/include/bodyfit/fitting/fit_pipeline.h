@@ -26,11 +26,13 @@ struct FitPipelineOptions
 	bool segment = true;
 	SegmentationOptions segmentation;
 	/// Every fit option except the lengths (budget, split rules, cover on/off, true distances, height override, ...).
-	/// Its muTorso, muLimbs, sigma, coverSpacing and relativeToHeight are not read: `lengths` replaces them.
+	/// Its muTorso, muLimbs, sigma, coverSpacing and relativeToHeight must stay at their defaults (`lengths` holds
+	/// them; the pipeline throws InvalidInputError otherwise, so that a length set here is never ignored silently).
 	BodyFitOptions fit;
 	FitLengths lengths; ///< each relative to H or in metres; defaults: BodyFitOptions' relative defaults
 
-	/// Options that fit with `fit` as a caller of fitBody would: lengths taken from `fit` in its unit.
+	/// Options that fit with `fit` as a caller of fitBody would: lengths taken from `fit` in its unit (and reset to
+	/// their defaults in `fit`).
 	static FitPipelineOptions from(const BodyFitOptions& fit);
 };
 
@@ -83,7 +85,8 @@ Segmentation segmentForFit(const TriMesh& mesh, const FitPipelineOptions& option
 /// benchmark timing the fit alone): resolves the lengths for the body height, fits, records the lengths in the
 /// JSON units (see the file comment) and, when options.segment is on and `segmentation` failed, fits the whole
 /// mesh as one region with the fallback warning first in fit.warnings.
-/// \throws InvalidInputError as fitBody (labels that do not match the mesh, bad options).
+/// \throws InvalidInputError as fitBody (labels that do not match the mesh, bad options), or for a length set in
+/// options.fit instead of options.lengths.
 BodyFit fitSegmented(const TriMesh& mesh, const Segmentation& segmentation, const FitPipelineOptions& options,
 					 BodyFitOptions* resolved = nullptr);
 
