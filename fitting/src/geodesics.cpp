@@ -47,74 +47,90 @@ double unfoldedDiagonal(const Eigen::Vector3d& a, const Eigen::Vector3d& b, cons
 
 } // namespace
 
-GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& options)
+namespace
 {
-	const int n = mesh.vertexCount();
-	const int m = mesh.faceCount();
 
-	// Half-edges a -> b (with the vertex opposite them in their face) grouped by a, by counting sort: O(F), no
-	// global sort. A vertex has a handful of half-edges, so twin lookups scan a short list.
-	std::vector<int> heOffset(static_cast<size_t>(n) + 1, 0);
-	auto valid = [&](int f) {
-		for (int k = 0; k < 3; ++k)
-		{
-			const int v = mesh.F(f, k);
-			if (v < 0 || v >= n || v == mesh.F(f, (k + 1) % 3))
-				return false;
-		}
-		return true;
-	};
-	for (int f = 0; f < m; ++f)
-		if (valid(f))
-			for (int k = 0; k < 3; ++k)
-				++heOffset[size_t(mesh.F(f, k)) + 1];
-	for (int v = 0; v < n; ++v)
-		heOffset[size_t(v) + 1] += heOffset[size_t(v)];
+/// Half-edges a -> b (with the vertex opposite them in their face) grouped by a, by counting sort: O(F), no global
+/// sort. A vertex has a handful of half-edges, so twin lookups scan a short list. Faces with an index out of range
+/// or a repeated corner are skipped.
+struct HalfEdges
+{
 	struct HalfEdge
 	{
 		int to, opposite;
 	};
-	std::vector<HalfEdge> halfEdges(static_cast<size_t>(heOffset[size_t(n)]));
+	std::vector<int> offset;     ///< half-edges of vertex a: [offset[a], offset[a + 1])
+	std::vector<HalfEdge> edges;
+
+	explicit HalfEdges(const TriMesh& mesh)
 	{
-		std::vector<int> fill(heOffset.begin(), heOffset.end() - 1);
+		const int n = mesh.vertexCount();
+		const int m = mesh.faceCount();
+		offset.assign(static_cast<size_t>(n) + 1, 0);
+		auto valid = [&](int f) {
+			for (int k = 0; k < 3; ++k)
+			{
+				const int v = mesh.F(f, k);
+				if (v < 0 || v >= n || v == mesh.F(f, (k + 1) % 3))
+					return false;
+			}
+			return true;
+		};
+		for (int f = 0; f < m; ++f)
+			if (valid(f))
+				for (int k = 0; k < 3; ++k)
+					++offset[size_t(mesh.F(f, k)) + 1];
+		for (int v = 0; v < n; ++v)
+			offset[size_t(v) + 1] += offset[size_t(v)];
+		edges.resize(static_cast<size_t>(offset[size_t(n)]));
+		std::vector<int> fill(offset.begin(), offset.end() - 1);
 		for (int f = 0; f < m; ++f)
 		{
 			if (!valid(f))
 				continue;
 			for (int k = 0; k < 3; ++k)
-				halfEdges[size_t(fill[size_t(mesh.F(f, k))]++)] = {mesh.F(f, (k + 1) % 3), mesh.F(f, (k + 2) % 3)};
+				edges[size_t(fill[size_t(mesh.F(f, k))]++)] = {mesh.F(f, (k + 1) % 3), mesh.F(f, (k + 2) % 3)};
 		}
 	}
-	// Number of half-edges a -> b, and the opposite vertex of the last one found.
-	auto find = [&](int a, int b, int* opposite) {
+
+	/// Number of half-edges a -> b, and the opposite vertex of the last one found.
+	int find(int a, int b, int* opposite) const
+	{
 		int count = 0;
-		for (int i = heOffset[size_t(a)]; i < heOffset[size_t(a) + 1]; ++i)
+		for (int i = offset[size_t(a)]; i < offset[size_t(a) + 1]; ++i)
 		{
-			if (halfEdges[size_t(i)].to == b)
+			if (edges[size_t(i)].to == b)
 			{
 				++count;
-				*opposite = halfEdges[size_t(i)].opposite;
+				*opposite = edges[size_t(i)].opposite;
 			}
 		}
 		return count;
-	};
+	}
+};
 
+/// The edges of the graph: every mesh edge once, plus (options.faceDiagonals) the unfolded diagonal across every
+/// manifold interior edge.
+std::vector<WeightedEdge> graphEdges(const TriMesh& mesh, const GeodesicOptions& options)
+{
+	const int n = mesh.vertexCount();
+	const HalfEdges he(mesh);
 	std::vector<WeightedEdge> edges;
-	edges.reserve(halfEdges.size() * (options.faceDiagonals ? 2 : 1));
+	edges.reserve(he.edges.size() * (options.faceDiagonals ? 2 : 1));
 	for (int a = 0; a < n; ++a)
 	{
-		for (int i = heOffset[size_t(a)]; i < heOffset[size_t(a) + 1]; ++i)
+		for (int i = he.offset[size_t(a)]; i < he.offset[size_t(a) + 1]; ++i)
 		{
-			const int b = halfEdges[size_t(i)].to;
+			const int b = he.edges[size_t(i)].to;
 			int d = -1;
-			const int twins = find(b, a, &d);
+			const int twins = he.find(b, a, &d);
 			// Each undirected edge once: from its smaller end, or from the only side that has a half-edge.
 			if (a > b && twins > 0)
 				continue;
 			const Eigen::Vector3d pa = mesh.V.row(a).transpose(), pb = mesh.V.row(b).transpose();
 			edges.push_back({std::min(a, b), std::max(a, b), (pa - pb).norm(), 1});
 			// A manifold interior edge has exactly one half-edge each way; others get no diagonal.
-			const int c = halfEdges[size_t(i)].opposite;
+			const int c = he.edges[size_t(i)].opposite;
 			if (options.faceDiagonals && twins == 1 && c != d)
 			{
 				const double len = unfoldedDiagonal(pa, pb, mesh.V.row(c).transpose(), mesh.V.row(d).transpose());
@@ -123,6 +139,15 @@ GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& optio
 			}
 		}
 	}
+	return edges;
+}
+
+} // namespace
+
+GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& options)
+{
+	const int n = mesh.vertexCount();
+	const std::vector<WeightedEdge> edges = graphEdges(mesh, options);
 
 	// CSR adjacency; then one record per vertex pair (the shortest; a mesh edge wins a tie), sorted by neighbour.
 	std::vector<int> degree(static_cast<size_t>(n) + 1, 0);

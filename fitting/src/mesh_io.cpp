@@ -9,6 +9,7 @@
 #include <assimp/scene.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
@@ -251,6 +252,7 @@ std::vector<int> connectedComponents(const TriMesh& mesh, int* count)
 
 LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const std::string& name)
 {
+	const std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
 	if (!(options.scale > 0.0) || !std::isfinite(options.scale))
 		throw InvalidInputError(name + ": scale must be a positive finite number");
 	LoadedMesh out;
@@ -376,6 +378,7 @@ LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const st
 	requireUsable(out.mesh, name);
 	r.bboxDiagonal = bboxDiagonal(out.mesh.V);
 	r.height = out.mesh.V.col(1).maxCoeff() - out.mesh.V.col(1).minCoeff();
+	r.repairMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 	return out;
 }
 
