@@ -6,6 +6,11 @@ bodyfit: Bullet extension for ellipsoid body colliders. See btEllipsoidCompoundS
 
 #include <new>
 
+#if defined(__SSE__) && !defined(BT_USE_DOUBLE_PRECISION)
+#include <xmmintrin.h>
+#define BT_ELLIPSOID_SSE_BOXES 1 ///< float build on x86: SSE for the path query's box filter
+#endif
+
 namespace
 {
 
@@ -61,6 +66,66 @@ bool transformsEqual(const btTransform& a, const btTransform& b)
 	const btMatrix3x3& ba = a.getBasis();
 	const btMatrix3x3& bb = b.getBasis();
 	return a.getOrigin() == b.getOrigin() && ba[0] == bb[0] && ba[1] == bb[1] && ba[2] == bb[2];
+}
+
+/// Cell index along one axis of a coordinate in cell units, clamped to [0, dim - 1].
+inline int cellIndex(btScalar f, int dim)
+{
+	// Clamped in floating point (max, min: no branches), then truncated; f is finite here.
+	return int(btMin(btMax(f, btScalar(0)), btScalar(dim - 1)));
+}
+
+inline bool boxesOverlap(const btVector3& aMin, const btVector3& aMax, const btVector3& bMin, const btVector3& bMax)
+{
+	return !(aMin.x() > bMax.x() || aMax.x() < bMin.x() || aMin.y() > bMax.y() || aMax.y() < bMin.y() ||
+			 aMin.z() > bMax.z() || aMax.z() < bMin.z());
+}
+
+/// A node's path box for the branch-free world box filter: overlaps(box) is exactly the closed-interval overlap test
+/// on x, y and z (four lanes compared at once where SSE is available, the fourth ignored).
+struct btPathBox
+{
+#ifdef BT_ELLIPSOID_SSE_BOXES
+	__m128 m_min, m_max;
+	btPathBox(const btVector3& mn, const btVector3& mx)
+		: m_min(_mm_setr_ps(mn.x(), mn.y(), mn.z(), btScalar(0))), m_max(_mm_setr_ps(mx.x(), mx.y(), mx.z(), btScalar(0)))
+	{
+	}
+	bool overlaps(const btVector3& lo, const btVector3& hi) const
+	{
+		const __m128 a = _mm_cmple_ps(m_min, _mm_loadu_ps(&hi.x()));
+		const __m128 b = _mm_cmpge_ps(m_max, _mm_loadu_ps(&lo.x()));
+		return (_mm_movemask_ps(_mm_and_ps(a, b)) & 7) == 7;
+	}
+#else
+	btScalar m_x0, m_y0, m_z0, m_x1, m_y1, m_z1;
+	btPathBox(const btVector3& mn, const btVector3& mx)
+		: m_x0(mn.x()), m_y0(mn.y()), m_z0(mn.z()), m_x1(mx.x()), m_y1(mx.y()), m_z1(mx.z())
+	{
+	}
+	bool overlaps(const btVector3& lo, const btVector3& hi) const
+	{
+		return (m_x0 <= hi.x()) & (m_x1 >= lo.x()) & (m_y0 <= hi.y()) & (m_y1 >= lo.y()) & (m_z0 <= hi.z()) &
+			   (m_z1 >= lo.z());
+	}
+#endif
+};
+
+/// The world box test of the path query without branches (the outcome is a coin toss per candidate): writes
+/// index(j) for j < n to out, keeping those whose box overlaps the path box. \return the number kept.
+template <class Index>
+inline int filterByBox(Index index, int n, const btVector3* boxes, const btVector3& boxMin, const btVector3& boxMax,
+					   int* out)
+{
+	const btPathBox pathBox(boxMin, boxMax);
+	int nc = 0;
+	for (int j = 0; j < n; ++j)
+	{
+		const int k = index(j);
+		out[nc] = k;
+		nc += pathBox.overlaps(boxes[2 * k], boxes[2 * k + 1]) ? 1 : 0;
+	}
+	return nc;
 }
 
 } // namespace
@@ -533,4 +598,130 @@ btScalar btEllipsoidWorldCache::minZeta(const btVector3& worldPoint, int* which)
 	if (which)
 		*which = bestIndex;
 	return best;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// btEllipsoidWorldCache::PathQuery
+
+btEllipsoidWorldCache::PathQuery::PathQuery(const btEllipsoidWorldCache& cache, btScalar radius)
+	: m_cache(&cache), m_axisAligned(false), m_radius(radius)
+{
+	const btScalar invCell = cache.m_invCell;
+	m_radiusBox.setValue(radius, radius, radius);
+	m_radiusCells = m_radiusBox * invCell;
+	const btTransform& toLocal = cache.getInverseTransform();
+	// World -> grid units in one affine map: f = (toLocal * p - gridOrigin) / cell.
+	m_toGrid = btTransform(toLocal.getBasis().scaled(btVector3(invCell, invCell, invCell)),
+						   (toLocal.getOrigin() - cache.m_gridOrigin) * invCell);
+	// A body without rotation (the common static case) needs no matrix product: f = (p - (o - t)) / cell, the same
+	// value up to rounding, which the allowance below covers.
+	m_axisAligned = toLocal.getBasis() == btMatrix3x3::getIdentity();
+	m_gridShift = cache.m_gridOrigin - toLocal.getOrigin();
+	// The fast path's containment test runs on body-frame coordinates, whose rounding (the world -> body transform
+	// of a point near the union: a few ulps of the largest coordinate in play) is taken off the dilation; where that
+	// leaves nothing (tiny ellipsoids far from the origin in float) every path takes the cell walk.
+	btVector3 farCorner = cache.m_aabbMin.absolute();
+	farCorner.setMax(cache.m_aabbMax.absolute());
+	const btVector3 origin = toLocal.getOrigin().absolute();
+	const btScalar farthest = farCorner[farCorner.maxAxis()] + origin[origin.maxAxis()];
+	const btScalar roundingCells = SIMD_EPSILON * btScalar(16) * farthest * invCell;
+	m_dilation = cache.m_cellDilation - roundingCells;
+	m_wideDilation = cache.m_wideDilation - roundingCells;
+}
+
+int btEllipsoidWorldCache::PathQuery::candidates(const btVector3& q, const btVector3& x, int* out) const
+{
+	const btEllipsoidWorldCache& cache = *m_cache;
+	if (cache.m_entries.size() == 0)
+		return 0;
+	btVector3 boxMin = x, boxMax = x;
+	boxMin.setMin(q);
+	boxMax.setMax(q);
+	boxMin -= m_radiusBox;
+	boxMax += m_radiusBox;
+	if (!boxesOverlap(boxMin, boxMax, cache.m_aabbMin, cache.m_aabbMax))
+		return 0;
+	// In cell units f = (p - origin) / cell of the body frame (the grid's). The path grown by the radius lies in the
+	// cube of half-size |x - q| / 2 + radius around its midpoint m (a rotation keeps lengths). Fast path: that cube
+	// lies within the grown cell of m's cell (the cell plus the dilation on every side, less the rounding allowance),
+	// so that cell's list holds every ellipsoid the path can meet. Next, the same with the wide lists (a 3 x 3 x 3
+	// block). Otherwise (a node moving about a cell in one substep) every cell under the box.
+	const btScalar invCell = cache.m_invCell;
+	const int dimX = cache.m_dims[0], dimY = cache.m_dims[1], dimZ = cache.m_dims[2];
+	const btVector3 mid = (x + q) * btScalar(0.5);
+	const btVector3 fm = m_axisAligned ? (mid - m_gridShift) * invCell : m_toGrid * mid;
+	const int cx = cellIndex(fm.x(), dimX), cy = cellIndex(fm.y(), dimY), cz = cellIndex(fm.z(), dimZ);
+	const btVector3 frac = fm - btVector3(btScalar(cx), btScalar(cy), btScalar(cz));
+	const btScalar faceGap = btMin(btMin(btMin(frac.x(), frac.y()), frac.z()),
+								   btScalar(1) - btMax(btMax(frac.x(), frac.y()), frac.z()));
+	// |x - q| / 2 rounded up a little (the midpoint and the length carry rounding too).
+	const btScalar halfPath = btSqrt((x - q).length2()) * btScalar(0.5 + 1e-5) + m_radius;
+	const btScalar reach = halfPath * invCell - faceGap;
+	const int c = cz * dimX * dimY + cy * dimX + cx;
+	if (reach <= m_dilation)
+		return filterList(cache.m_cellItems.size() ? &cache.m_cellItems[0] + cache.m_cellStart[c] : 0,
+						  cache.m_cellStart[c + 1] - cache.m_cellStart[c], boxMin, boxMax, out);
+	if (reach <= m_wideDilation)
+		return filterList(cache.m_wideItems.size() ? &cache.m_wideItems[0] + cache.m_wideStart[c] : 0,
+						  cache.m_wideStart[c + 1] - cache.m_wideStart[c], boxMin, boxMax, out);
+	return walkCells(q, x, boxMin, boxMax, out);
+}
+
+int btEllipsoidWorldCache::PathQuery::filterList(const int* list, int listSize, const btVector3& boxMin,
+												 const btVector3& boxMax, int* out) const
+{
+	// Two thirds of a listed cell's ellipsoids are dropped here for a few compares each.
+	return filterByBox([list](int j) { return list[j]; }, listSize, &m_cache->m_boxes[0], boxMin, boxMax, out);
+}
+
+int btEllipsoidWorldCache::PathQuery::walkCells(const btVector3& q, const btVector3& x, const btVector3& boxMin,
+												const btVector3& boxMax, int* out) const
+{
+	const btEllipsoidWorldCache& cache = *m_cache;
+	const int ne = cache.m_entries.size();
+	const int dimX = cache.m_dims[0], dimY = cache.m_dims[1], dimZ = cache.m_dims[2];
+	const int dimXY = dimX * dimY;
+	const int* cellStart = &cache.m_cellStart[0];
+	const btVector3 fq = m_toGrid * q, fx = m_toGrid * x;
+	btVector3 fMin = fx, fMax = fx;
+	fMin.setMin(fq);
+	fMax.setMax(fq);
+	fMin -= m_radiusCells;
+	fMax += m_radiusCells;
+	const int x0 = cellIndex(fMin.x(), dimX), x1 = cellIndex(fMax.x(), dimX);
+	const int y0 = cellIndex(fMin.y(), dimY), y1 = cellIndex(fMax.y(), dimY);
+	const int z0 = cellIndex(fMin.z(), dimZ), z1 = cellIndex(fMax.z(), dimZ);
+	// A long path (a corner of the cloth whipping) spans many cells whose lists repeat the same few ellipsoids: when
+	// they hold more entries than there are ellipsoids, every ellipsoid's box is tested once instead (no duplicates).
+	int listed = 0;
+	for (int iz = z0; iz <= z1 && listed < ne; ++iz)
+		for (int iy = y0; iy <= y1; ++iy)
+		{
+			const int row = iz * dimXY + iy * dimX;
+			listed += cellStart[row + x1 + 1] - cellStart[row + x0];
+		}
+	if (listed >= ne)
+		return filterByBox([](int k) { return k; }, ne, &cache.m_boxes[0], boxMin, boxMax, out);
+	const btVector3* boxes = &cache.m_boxes[0];
+	int nc = 0;
+	for (int iz = z0; iz <= z1; ++iz)
+		for (int iy = y0; iy <= y1; ++iy)
+			for (int ix = x0; ix <= x1; ++ix)
+			{
+				const int cc = iz * dimXY + iy * dimX + ix;
+				for (int j = cellStart[cc]; j < cellStart[cc + 1]; ++j)
+				{
+					const int k = cache.m_cellItems[j];
+					if (!boxesOverlap(boxMin, boxMax, boxes[2 * k], boxes[2 * k + 1]))
+						continue;
+					// A box spanning several cells meets an ellipsoid in each: keep the first (the candidate list is
+					// a handful long, a linear scan beats a stamp array here).
+					int m = 0;
+					while (m < nc && out[m] != k)
+						++m;
+					if (m == nc)
+						out[nc++] = k;
+				}
+			}
+	return nc;
 }

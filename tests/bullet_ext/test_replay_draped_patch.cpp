@@ -145,7 +145,7 @@ TEST_CASE("replay: node hash of the draped patch of colliders_patch (a)", "[.rep
 	cc.m_skinOffset = btScalar(s.skin);
 	cc.m_friction = btScalar(s.friction);
 	const char* why = nullptr;
-	btEllipsoidClothCollider* collider = btEllipsoidClothCollider::install(&world, &bodyObject, cc, &why);
+	btEllipsoidClothCollider* collider = softSolver.installCollider(&world, &bodyObject, cc, &why);
 	INFO((why ? why : ""));
 	REQUIRE(collider);
 

@@ -165,6 +165,38 @@ public:
 	/// Grid broadphase: indices of entries whose world box overlaps the world box [aabbMin, aabbMax], each once.
 	void query(const btVector3& aabbMin, const btVector3& aabbMax, btAlignedObjectArray<int>& out) const;
 
+	/// The cloth collider's broadphase: candidates for node paths q -> x (world space) grown by a radius on every
+	/// side. Prepared once per cache state and radius (the constructor), then asked per node. candidates() writes every
+	/// entry whose world box overlaps the path's box [min(q, x) - radius, max(q, x) + radius] and that the grid
+	/// lists near the path, each once; it returns a superset of the entries whose ellipsoid the grown path meets
+	/// (the grid's lists are conservative, see buildLists). 0 when the box misses the union's box.
+	/// The object reads the cache: it is valid until the next update() that recomputes.
+	class PathQuery
+	{
+	public:
+		/// Prepares the query for the cache's current state and a radius >= 0 (the collider's skin offset).
+		PathQuery(const btEllipsoidWorldCache& cache, btScalar radius);
+		/// Writes the candidates to out (room for size() indices) and returns their number.
+		int candidates(const btVector3& q, const btVector3& x, int* out) const;
+
+	private:
+		const btEllipsoidWorldCache* m_cache;
+		btVector3 m_radiusBox;    ///< (radius, radius, radius)
+		btVector3 m_radiusCells;  ///< the same in cell units
+		btTransform m_toGrid;     ///< world -> grid units: f = (toLocal * p - gridOrigin) / cell
+		btVector3 m_gridShift;    ///< axis-aligned bodies: f = (p - m_gridShift) / cell
+		bool m_axisAligned;       ///< the body has no rotation (the common static case)
+		btScalar m_radius;
+		btScalar m_dilation;      ///< the cell lists' dilation less the rounding allowance (cells)
+		btScalar m_wideDilation;  ///< the same for the wide lists
+
+		int filterList(const int* list, int listSize, const btVector3& boxMin, const btVector3& boxMax, int* out) const;
+		int walkCells(const btVector3& q, const btVector3& x, const btVector3& boxMin, const btVector3& boxMax,
+					  int* out) const;
+	};
+	/// Packed narrow-phase records, kPackedStride floats per entry (0 when the cache is empty).
+	const btScalar* getPackedRecords() const { return m_packed.size() ? &m_packed[0] : 0; }
+
 private:
 	btAlignedObjectArray<Entry> m_entries;
 	btAlignedObjectArray<btVector3> m_boxes; ///< entry i's world box: [2i] min, [2i+1] max (compact, for the broadphase)
@@ -208,7 +240,6 @@ private:
 			return m_dims[k] - 1;
 		return int(f);
 	}
-	friend class btEllipsoidClothCollider;
 };
 
 #endif // BT_ELLIPSOID_COMPOUND_SHAPE_H
