@@ -114,7 +114,7 @@ struct btPathBox
 /// The world box test of the path query without branches (the outcome is a coin toss per candidate): writes
 /// index(j) for j < n to out, keeping those whose box overlaps the path box. \return the number kept.
 template <class Index>
-inline int filterByBox(Index index, int n, const btVector3* boxes, const btVector3& boxMin, const btVector3& boxMax,
+SIMD_FORCE_INLINE int filterByBox(Index index, int n, const btVector3* boxes, const btVector3& boxMin, const btVector3& boxMax,
 					   int* out)
 {
 	const btPathBox pathBox(boxMin, boxMax);
@@ -604,8 +604,20 @@ btScalar btEllipsoidWorldCache::minZeta(const btVector3& worldPoint, int* which)
 // btEllipsoidWorldCache::PathQuery
 
 btEllipsoidWorldCache::PathQuery::PathQuery(const btEllipsoidWorldCache& cache, btScalar radius)
-	: m_cache(&cache), m_axisAligned(false), m_radius(radius)
+	: m_count(cache.m_entries.size()),
+	  m_boxes(cache.m_boxes.size() ? &cache.m_boxes[0] : 0),
+	  m_cellStart(cache.m_cellStart.size() ? &cache.m_cellStart[0] : 0),
+	  m_cellItems(cache.m_cellItems.size() ? &cache.m_cellItems[0] : 0),
+	  m_wideStart(cache.m_wideStart.size() ? &cache.m_wideStart[0] : 0),
+	  m_wideItems(cache.m_wideItems.size() ? &cache.m_wideItems[0] : 0),
+	  m_unionMin(cache.m_aabbMin),
+	  m_unionMax(cache.m_aabbMax),
+	  m_invCell(cache.m_invCell),
+	  m_axisAligned(false),
+	  m_radius(radius)
 {
+	for (int k = 0; k < 3; ++k)
+		m_dims[k] = cache.m_dims[k];
 	const btScalar invCell = cache.m_invCell;
 	m_radiusBox.setValue(radius, radius, radius);
 	m_radiusCells = m_radiusBox * invCell;
@@ -631,23 +643,23 @@ btEllipsoidWorldCache::PathQuery::PathQuery(const btEllipsoidWorldCache& cache, 
 
 int btEllipsoidWorldCache::PathQuery::candidates(const btVector3& q, const btVector3& x, int* out) const
 {
-	const btEllipsoidWorldCache& cache = *m_cache;
-	if (cache.m_entries.size() == 0)
+	if (m_count == 0)
 		return 0;
 	btVector3 boxMin = x, boxMax = x;
 	boxMin.setMin(q);
 	boxMax.setMax(q);
 	boxMin -= m_radiusBox;
 	boxMax += m_radiusBox;
-	if (!boxesOverlap(boxMin, boxMax, cache.m_aabbMin, cache.m_aabbMax))
+	if (!boxesOverlap(boxMin, boxMax, m_unionMin, m_unionMax))
 		return 0;
 	// In cell units f = (p - origin) / cell of the body frame (the grid's). The path grown by the radius lies in the
 	// cube of half-size |x - q| / 2 + radius around its midpoint m (a rotation keeps lengths). Fast path: that cube
 	// lies within the grown cell of m's cell (the cell plus the dilation on every side, less the rounding allowance),
-	// so that cell's list holds every ellipsoid the path can meet. Next, the same with the wide lists (a 3 x 3 x 3
-	// block). Otherwise (a node moving about a cell in one substep) every cell under the box.
-	const btScalar invCell = cache.m_invCell;
-	const int dimX = cache.m_dims[0], dimY = cache.m_dims[1], dimZ = cache.m_dims[2];
+	// so that cell's list holds every ellipsoid the path can meet; its entries are then filtered by their world
+	// boxes. Next, the same with the wide lists (a 3 x 3 x 3 block). Otherwise (a node moving about a cell in one
+	// substep) every cell under the box.
+	const btScalar invCell = m_invCell;
+	const int dimX = m_dims[0], dimY = m_dims[1], dimZ = m_dims[2];
 	const btVector3 mid = (x + q) * btScalar(0.5);
 	const btVector3 fm = m_axisAligned ? (mid - m_gridShift) * invCell : m_toGrid * mid;
 	const int cx = cellIndex(fm.x(), dimX), cy = cellIndex(fm.y(), dimY), cz = cellIndex(fm.z(), dimZ);
@@ -658,30 +670,20 @@ int btEllipsoidWorldCache::PathQuery::candidates(const btVector3& q, const btVec
 	const btScalar halfPath = btSqrt((x - q).length2()) * btScalar(0.5 + 1e-5) + m_radius;
 	const btScalar reach = halfPath * invCell - faceGap;
 	const int c = cz * dimX * dimY + cy * dimX + cx;
-	if (reach <= m_dilation)
-		return filterList(cache.m_cellItems.size() ? &cache.m_cellItems[0] + cache.m_cellStart[c] : 0,
-						  cache.m_cellStart[c + 1] - cache.m_cellStart[c], boxMin, boxMax, out);
-	if (reach <= m_wideDilation)
-		return filterList(cache.m_wideItems.size() ? &cache.m_wideItems[0] + cache.m_wideStart[c] : 0,
-						  cache.m_wideStart[c + 1] - cache.m_wideStart[c], boxMin, boxMax, out);
-	return walkCells(q, x, boxMin, boxMax, out);
-}
-
-int btEllipsoidWorldCache::PathQuery::filterList(const int* list, int listSize, const btVector3& boxMin,
-												 const btVector3& boxMax, int* out) const
-{
-	// Two thirds of a listed cell's ellipsoids are dropped here for a few compares each.
-	return filterByBox([list](int j) { return list[j]; }, listSize, &m_cache->m_boxes[0], boxMin, boxMax, out);
+	const int* start = reach <= m_dilation ? m_cellStart : (reach <= m_wideDilation ? m_wideStart : 0);
+	if (!start)
+		return walkCells(q, x, boxMin, boxMax, out);
+	const int* list = (start == m_cellStart ? m_cellItems : m_wideItems) + start[c];
+	return filterByBox([list](int j) { return list[j]; }, start[c + 1] - start[c], m_boxes, boxMin, boxMax, out);
 }
 
 int btEllipsoidWorldCache::PathQuery::walkCells(const btVector3& q, const btVector3& x, const btVector3& boxMin,
 												const btVector3& boxMax, int* out) const
 {
-	const btEllipsoidWorldCache& cache = *m_cache;
-	const int ne = cache.m_entries.size();
-	const int dimX = cache.m_dims[0], dimY = cache.m_dims[1], dimZ = cache.m_dims[2];
+	const int ne = m_count;
+	const int dimX = m_dims[0], dimY = m_dims[1], dimZ = m_dims[2];
 	const int dimXY = dimX * dimY;
-	const int* cellStart = &cache.m_cellStart[0];
+	const int* cellStart = m_cellStart;
 	const btVector3 fq = m_toGrid * q, fx = m_toGrid * x;
 	btVector3 fMin = fx, fMax = fx;
 	fMin.setMin(fq);
@@ -701,8 +703,7 @@ int btEllipsoidWorldCache::PathQuery::walkCells(const btVector3& q, const btVect
 			listed += cellStart[row + x1 + 1] - cellStart[row + x0];
 		}
 	if (listed >= ne)
-		return filterByBox([](int k) { return k; }, ne, &cache.m_boxes[0], boxMin, boxMax, out);
-	const btVector3* boxes = &cache.m_boxes[0];
+		return filterByBox([](int k) { return k; }, ne, m_boxes, boxMin, boxMax, out);
 	int nc = 0;
 	for (int iz = z0; iz <= z1; ++iz)
 		for (int iy = y0; iy <= y1; ++iy)
@@ -711,8 +712,8 @@ int btEllipsoidWorldCache::PathQuery::walkCells(const btVector3& q, const btVect
 				const int cc = iz * dimXY + iy * dimX + ix;
 				for (int j = cellStart[cc]; j < cellStart[cc + 1]; ++j)
 				{
-					const int k = cache.m_cellItems[j];
-					if (!boxesOverlap(boxMin, boxMax, boxes[2 * k], boxes[2 * k + 1]))
+					const int k = m_cellItems[j];
+					if (!boxesOverlap(boxMin, boxMax, m_boxes[2 * k], m_boxes[2 * k + 1]))
 						continue;
 					// A box spanning several cells meets an ellipsoid in each: keep the first (the candidate list is
 					// a handful long, a linear scan beats a stamp array here).

@@ -166,22 +166,23 @@ struct btPathEntry
 inline void btEarliestEntry(const btScalar* packed, const int* cand, int nc, const btPathEnds& ends, btScalar* tvals,
 							btPathEntry& out)
 {
-	out.m_ellipsoid = -1;
-	out.m_t = kNoEntry;
-	out.m_u.setValue(0, 0, 0);
-	out.m_startInside = false;
-	out.m_minZetaEnd = SIMD_INFINITY;
+	// Locals in the loop (out is written once at the end: stores to tvals could alias its fields).
+	int best = -1;
+	btScalar tBest = kNoEntry;
+	btVector3 uBest(0, 0, 0);
+	bool startInside = false;
+	btScalar zMinX = SIMD_INFINITY;
 	for (int j = 0; j < nc; ++j)
 	{
 		btScalar uq[3], ux[3];
 		btWhitenPath(ends, packed + btEllipsoidWorldCache::kPackedStride * cand[j], uq, ux);
 		const btScalar zx = ux[0] * ux[0] + ux[1] * ux[1] + ux[2] * ux[2];
 		const btScalar zq = uq[0] * uq[0] + uq[1] * uq[1] + uq[2] * uq[2];
-		out.m_minZetaEnd = btMin(out.m_minZetaEnd, zx);
+		zMinX = btMin(zMinX, zx);
 		tvals[j] = kNoEntry;
 		if (zq < btScalar(1))
 		{
-			out.m_startInside = true;
+			startInside = true;
 			continue;
 		}
 		const btScalar d0 = ux[0] - uq[0], d1 = ux[1] - uq[1], d2 = ux[2] - uq[2];
@@ -189,13 +190,18 @@ inline void btEarliestEntry(const btScalar* packed, const int* cand, int nc, con
 		if (t > btScalar(1) && zx < btScalar(1))
 			t = btScalar(1); // the end is inside but rounding lost the root
 		tvals[j] = t;
-		if (t <= btScalar(1) && t < out.m_t)
+		if (t <= btScalar(1) && t < tBest)
 		{
-			out.m_t = t;
-			out.m_ellipsoid = cand[j];
-			out.m_u.setValue(uq[0] + d0 * t, uq[1] + d1 * t, uq[2] + d2 * t);
+			tBest = t;
+			best = cand[j];
+			uBest.setValue(uq[0] + d0 * t, uq[1] + d1 * t, uq[2] + d2 * t);
 		}
 	}
+	out.m_ellipsoid = best;
+	out.m_t = tBest;
+	out.m_u = uBest;
+	out.m_startInside = startInside;
+	out.m_minZetaEnd = zMinX;
 }
 
 /// W^T u for a matrix W stored by rows: the (unnormalised) outward normal at the point whose whitened coordinates

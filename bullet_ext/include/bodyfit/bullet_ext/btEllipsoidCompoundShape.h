@@ -180,7 +180,17 @@ public:
 		int candidates(const btVector3& q, const btVector3& x, int* out) const;
 
 	private:
-		const btEllipsoidWorldCache* m_cache;
+		// Copies of the cache's grid (plain pointers and values: the per-node call reads no array objects).
+		int m_count;              ///< number of entries
+		int m_dims[3];
+		const btVector3* m_boxes; ///< entry boxes, [2i] min and [2i + 1] max
+		const int* m_cellStart;
+		const int* m_cellItems;
+		const int* m_wideStart;
+		const int* m_wideItems;
+		btVector3 m_unionMin;
+		btVector3 m_unionMax;
+		btScalar m_invCell;
 		btVector3 m_radiusBox;    ///< (radius, radius, radius)
 		btVector3 m_radiusCells;  ///< the same in cell units
 		btTransform m_toGrid;     ///< world -> grid units: f = (toLocal * p - gridOrigin) / cell
@@ -190,7 +200,6 @@ public:
 		btScalar m_dilation;      ///< the cell lists' dilation less the rounding allowance (cells)
 		btScalar m_wideDilation;  ///< the same for the wide lists
 
-		int filterList(const int* list, int listSize, const btVector3& boxMin, const btVector3& boxMax, int* out) const;
 		int walkCells(const btVector3& q, const btVector3& x, const btVector3& boxMin, const btVector3& boxMax,
 					  int* out) const;
 	};
