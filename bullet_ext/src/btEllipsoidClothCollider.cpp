@@ -300,7 +300,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	stats.m_collisionCpuSeconds += threadCpuSeconds() - cpu0;
 }
 
-SIMD_FORCE_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep,
+BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep,
 											   btScalar& zeta)
 {
 	const btVector3 x = node.m_x;

@@ -6,11 +6,6 @@ bodyfit: Bullet extension for ellipsoid body colliders. See btEllipsoidCompoundS
 
 #include <new>
 
-#if defined(__SSE__) && !defined(BT_USE_DOUBLE_PRECISION)
-#include <xmmintrin.h>
-#define BT_ELLIPSOID_SSE_BOXES 1 ///< float build on x86: SSE for the path query's box filter
-#endif
-
 namespace
 {
 
@@ -66,66 +61,6 @@ bool transformsEqual(const btTransform& a, const btTransform& b)
 	const btMatrix3x3& ba = a.getBasis();
 	const btMatrix3x3& bb = b.getBasis();
 	return a.getOrigin() == b.getOrigin() && ba[0] == bb[0] && ba[1] == bb[1] && ba[2] == bb[2];
-}
-
-/// Cell index along one axis of a coordinate in cell units, clamped to [0, dim - 1].
-inline int cellIndex(btScalar f, int dim)
-{
-	// Clamped in floating point (max, min: no branches), then truncated; f is finite here.
-	return int(btMin(btMax(f, btScalar(0)), btScalar(dim - 1)));
-}
-
-inline bool boxesOverlap(const btVector3& aMin, const btVector3& aMax, const btVector3& bMin, const btVector3& bMax)
-{
-	return !(aMin.x() > bMax.x() || aMax.x() < bMin.x() || aMin.y() > bMax.y() || aMax.y() < bMin.y() ||
-			 aMin.z() > bMax.z() || aMax.z() < bMin.z());
-}
-
-/// A node's path box for the branch-free world box filter: overlaps(box) is exactly the closed-interval overlap test
-/// on x, y and z (four lanes compared at once where SSE is available, the fourth ignored).
-struct btPathBox
-{
-#ifdef BT_ELLIPSOID_SSE_BOXES
-	__m128 m_min, m_max;
-	btPathBox(const btVector3& mn, const btVector3& mx)
-		: m_min(_mm_setr_ps(mn.x(), mn.y(), mn.z(), btScalar(0))), m_max(_mm_setr_ps(mx.x(), mx.y(), mx.z(), btScalar(0)))
-	{
-	}
-	bool overlaps(const btVector3& lo, const btVector3& hi) const
-	{
-		const __m128 a = _mm_cmple_ps(m_min, _mm_loadu_ps(&hi.x()));
-		const __m128 b = _mm_cmpge_ps(m_max, _mm_loadu_ps(&lo.x()));
-		return (_mm_movemask_ps(_mm_and_ps(a, b)) & 7) == 7;
-	}
-#else
-	btScalar m_x0, m_y0, m_z0, m_x1, m_y1, m_z1;
-	btPathBox(const btVector3& mn, const btVector3& mx)
-		: m_x0(mn.x()), m_y0(mn.y()), m_z0(mn.z()), m_x1(mx.x()), m_y1(mx.y()), m_z1(mx.z())
-	{
-	}
-	bool overlaps(const btVector3& lo, const btVector3& hi) const
-	{
-		return (m_x0 <= hi.x()) & (m_x1 >= lo.x()) & (m_y0 <= hi.y()) & (m_y1 >= lo.y()) & (m_z0 <= hi.z()) &
-			   (m_z1 >= lo.z());
-	}
-#endif
-};
-
-/// The world box test of the path query without branches (the outcome is a coin toss per candidate): writes
-/// index(j) for j < n to out, keeping those whose box overlaps the path box. \return the number kept.
-template <class Index>
-SIMD_FORCE_INLINE int filterByBox(Index index, int n, const btVector3* boxes, const btVector3& boxMin, const btVector3& boxMax,
-					   int* out)
-{
-	const btPathBox pathBox(boxMin, boxMax);
-	int nc = 0;
-	for (int j = 0; j < n; ++j)
-	{
-		const int k = index(j);
-		out[nc] = k;
-		nc += pathBox.overlaps(boxes[2 * k], boxes[2 * k + 1]) ? 1 : 0;
-	}
-	return nc;
 }
 
 } // namespace
@@ -641,42 +576,6 @@ btEllipsoidWorldCache::PathQuery::PathQuery(const btEllipsoidWorldCache& cache, 
 	m_wideDilation = cache.m_wideDilation - roundingCells;
 }
 
-int btEllipsoidWorldCache::PathQuery::candidates(const btVector3& q, const btVector3& x, int* out) const
-{
-	if (m_count == 0)
-		return 0;
-	btVector3 boxMin = x, boxMax = x;
-	boxMin.setMin(q);
-	boxMax.setMax(q);
-	boxMin -= m_radiusBox;
-	boxMax += m_radiusBox;
-	if (!boxesOverlap(boxMin, boxMax, m_unionMin, m_unionMax))
-		return 0;
-	// In cell units f = (p - origin) / cell of the body frame (the grid's). The path grown by the radius lies in the
-	// cube of half-size |x - q| / 2 + radius around its midpoint m (a rotation keeps lengths). Fast path: that cube
-	// lies within the grown cell of m's cell (the cell plus the dilation on every side, less the rounding allowance),
-	// so that cell's list holds every ellipsoid the path can meet; its entries are then filtered by their world
-	// boxes. Next, the same with the wide lists (a 3 x 3 x 3 block). Otherwise (a node moving about a cell in one
-	// substep) every cell under the box.
-	const btScalar invCell = m_invCell;
-	const int dimX = m_dims[0], dimY = m_dims[1], dimZ = m_dims[2];
-	const btVector3 mid = (x + q) * btScalar(0.5);
-	const btVector3 fm = m_axisAligned ? (mid - m_gridShift) * invCell : m_toGrid * mid;
-	const int cx = cellIndex(fm.x(), dimX), cy = cellIndex(fm.y(), dimY), cz = cellIndex(fm.z(), dimZ);
-	const btVector3 frac = fm - btVector3(btScalar(cx), btScalar(cy), btScalar(cz));
-	const btScalar faceGap = btMin(btMin(btMin(frac.x(), frac.y()), frac.z()),
-								   btScalar(1) - btMax(btMax(frac.x(), frac.y()), frac.z()));
-	// |x - q| / 2 rounded up a little (the midpoint and the length carry rounding too).
-	const btScalar halfPath = btSqrt((x - q).length2()) * btScalar(0.5 + 1e-5) + m_radius;
-	const btScalar reach = halfPath * invCell - faceGap;
-	const int c = cz * dimX * dimY + cy * dimX + cx;
-	const int* start = reach <= m_dilation ? m_cellStart : (reach <= m_wideDilation ? m_wideStart : 0);
-	if (!start)
-		return walkCells(q, x, boxMin, boxMax, out);
-	const int* list = (start == m_cellStart ? m_cellItems : m_wideItems) + start[c];
-	return filterByBox([list](int j) { return list[j]; }, start[c + 1] - start[c], m_boxes, boxMin, boxMax, out);
-}
-
 int btEllipsoidWorldCache::PathQuery::walkCells(const btVector3& q, const btVector3& x, const btVector3& boxMin,
 												const btVector3& boxMax, int* out) const
 {
@@ -703,7 +602,7 @@ int btEllipsoidWorldCache::PathQuery::walkCells(const btVector3& q, const btVect
 			listed += cellStart[row + x1 + 1] - cellStart[row + x0];
 		}
 	if (listed >= ne)
-		return filterByBox([](int k) { return k; }, ne, m_boxes, boxMin, boxMax, out);
+		return filterByBox(AllIndices(), ne, m_boxes, boxMin, boxMax, out);
 	int nc = 0;
 	for (int iz = z0; iz <= z1; ++iz)
 		for (int iy = y0; iy <= y1; ++iy)

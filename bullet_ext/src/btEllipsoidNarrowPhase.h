@@ -163,7 +163,7 @@ struct btPathEntry
 /// The path test of one node: for every candidate the entry parameter t of q -> x (kNoEntry for none or a start
 /// inside it, written to tvals[j]); the earliest entry in [0, 1] wins (the first listed on exact ties). An end inside
 /// whose root rounding lost counts as an entry at t = 1.
-inline void btEarliestEntry(const btScalar* packed, const int* cand, int nc, const btPathEnds& ends, btScalar* tvals,
+BT_ELLIPSOID_ALWAYS_INLINE void btEarliestEntry(const btScalar* packed, const int* cand, int nc, const btPathEnds& ends, btScalar* tvals,
 							btPathEntry& out)
 {
 	// Locals in the loop (out is written once at the end: stores to tvals could alias its fields).
