@@ -513,13 +513,10 @@ void btEllipsoidClothSoftBodySolver::solveConstraints(btScalar solverdt)
 	for (int c = 0; c < m_colliders.size(); ++c)
 	{
 		btEllipsoidClothColliderCore* collider = m_colliders[c];
-		const btSoftBodyWorldInfo* worldInfo = &collider->getWorld()->getWorldInfo();
 		collider->beginSubstep(solverdt);
 		for (int b = 0; b < m_softBodySet.size(); ++b)
 		{
 			btSoftBody* psb = m_softBodySet[b];
-			if (psb->m_worldInfo != worldInfo)
-				continue; // a soft body of another world sharing this solver
 			const bool haveStarts = b < m_startPositions.size() &&
 									m_startPositions[b].size() == psb->m_nodes.size() && psb->m_nodes.size() > 0;
 			collider->collide(psb, solverdt, haveStarts ? &m_startPositions[b][0] : 0);

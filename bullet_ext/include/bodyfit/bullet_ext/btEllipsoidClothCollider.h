@@ -143,7 +143,7 @@ public:
 	/// Installs the collider for `body` in `world`, which must have been built with this solver (Bullet 3.24's
 	/// btSoftRigidDynamicsWorld does not tell its solver; when the world already has soft bodies, their solver is
 	/// checked). The body's collision shape must be a btEllipsoidCompoundShape (or a single btEllipsoidShape). The
-	/// body need not be in the world. The collider acts on the soft bodies of `world` only.
+	/// body need not be in the world. The collider acts on every soft body this solver steps.
 	/// \return the collider, owned by this solver (removed with uninstallCollider or when the solver is destroyed),
 	/// or 0 when a precondition fails; the reason is written to *whyNot (a static one-line string) if whyNot is not 0.
 	btEllipsoidClothCollider* installCollider(btSoftRigidDynamicsWorld* world, btCollisionObject* body,
