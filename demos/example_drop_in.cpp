@@ -79,7 +79,7 @@ int main(int argc, char** argv)
 	cfg.m_skinOffset = 0.002f; // 2 mm
 	cfg.m_friction = 0.4f;
 	const char* why = nullptr;
-	btEllipsoidClothCollider* collider = btEllipsoidClothCollider::install(&world, &body, cfg, &why);
+	btEllipsoidClothCollider* collider = softSolver.installCollider(&world, &body, cfg, &why);
 	if (!collider)
 	{
 		std::fprintf(stderr, "example_drop_in: %s\n", why);

@@ -534,3 +534,94 @@ btScalar btEllipsoidWorldCache::minZeta(const btVector3& worldPoint, int* which)
 		*which = bestIndex;
 	return best;
 }
+
+// ---------------------------------------------------------------------------------------------------------------
+// btEllipsoidWorldCache::PathQuery
+
+btEllipsoidWorldCache::PathQuery::PathQuery(const btEllipsoidWorldCache& cache, btScalar radius)
+	: m_count(cache.m_entries.size()),
+	  m_boxes(cache.m_boxes.size() ? &cache.m_boxes[0] : 0),
+	  m_cellStart(cache.m_cellStart.size() ? &cache.m_cellStart[0] : 0),
+	  m_cellItems(cache.m_cellItems.size() ? &cache.m_cellItems[0] : 0),
+	  m_wideStart(cache.m_wideStart.size() ? &cache.m_wideStart[0] : 0),
+	  m_wideItems(cache.m_wideItems.size() ? &cache.m_wideItems[0] : 0),
+	  m_unionMin(cache.m_aabbMin),
+	  m_unionMax(cache.m_aabbMax),
+	  m_invCell(cache.m_invCell),
+	  m_axisAligned(false),
+	  m_radius(radius)
+{
+	for (int k = 0; k < 3; ++k)
+		m_dims[k] = cache.m_dims[k];
+	const btScalar invCell = cache.m_invCell;
+	m_radiusBox.setValue(radius, radius, radius);
+	m_radiusCells = m_radiusBox * invCell;
+	const btTransform& toLocal = cache.getInverseTransform();
+	// World -> grid units in one affine map: f = (toLocal * p - gridOrigin) / cell.
+	m_toGrid = btTransform(toLocal.getBasis().scaled(btVector3(invCell, invCell, invCell)),
+						   (toLocal.getOrigin() - cache.m_gridOrigin) * invCell);
+	// A body without rotation (the common static case) needs no matrix product: f = (p - (o - t)) / cell, the same
+	// value up to rounding, which the allowance below covers.
+	m_axisAligned = toLocal.getBasis() == btMatrix3x3::getIdentity();
+	m_gridShift = cache.m_gridOrigin - toLocal.getOrigin();
+	// The fast path's containment test runs on body-frame coordinates, whose rounding (the world -> body transform
+	// of a point near the union: a few ulps of the largest coordinate in play) is taken off the dilation; where that
+	// leaves nothing (tiny ellipsoids far from the origin in float) every path takes the cell walk.
+	btVector3 farCorner = cache.m_aabbMin.absolute();
+	farCorner.setMax(cache.m_aabbMax.absolute());
+	const btVector3 origin = toLocal.getOrigin().absolute();
+	const btScalar farthest = farCorner[farCorner.maxAxis()] + origin[origin.maxAxis()];
+	const btScalar roundingCells = SIMD_EPSILON * btScalar(16) * farthest * invCell;
+	m_dilation = cache.m_cellDilation - roundingCells;
+	m_wideDilation = cache.m_wideDilation - roundingCells;
+}
+
+int btEllipsoidWorldCache::PathQuery::walkCells(const btVector3& q, const btVector3& x, const btVector3& boxMin,
+												const btVector3& boxMax, int* out) const
+{
+	const int ne = m_count;
+	const int dimX = m_dims[0], dimY = m_dims[1], dimZ = m_dims[2];
+	const int dimXY = dimX * dimY;
+	const int* cellStart = m_cellStart;
+	const btVector3 fq = m_toGrid * q, fx = m_toGrid * x;
+	btVector3 fMin = fx, fMax = fx;
+	fMin.setMin(fq);
+	fMax.setMax(fq);
+	fMin -= m_radiusCells;
+	fMax += m_radiusCells;
+	const int x0 = cellIndex(fMin.x(), dimX), x1 = cellIndex(fMax.x(), dimX);
+	const int y0 = cellIndex(fMin.y(), dimY), y1 = cellIndex(fMax.y(), dimY);
+	const int z0 = cellIndex(fMin.z(), dimZ), z1 = cellIndex(fMax.z(), dimZ);
+	// A long path (a corner of the cloth whipping) spans many cells whose lists repeat the same few ellipsoids: when
+	// they hold more entries than there are ellipsoids, every ellipsoid's box is tested once instead (no duplicates).
+	int listed = 0;
+	for (int iz = z0; iz <= z1 && listed < ne; ++iz)
+		for (int iy = y0; iy <= y1; ++iy)
+		{
+			const int row = iz * dimXY + iy * dimX;
+			listed += cellStart[row + x1 + 1] - cellStart[row + x0];
+		}
+	if (listed >= ne)
+		return filterByBox(AllIndices(), ne, m_boxes, boxMin, boxMax, out);
+	int nc = 0;
+	for (int iz = z0; iz <= z1; ++iz)
+		for (int iy = y0; iy <= y1; ++iy)
+			for (int ix = x0; ix <= x1; ++ix)
+			{
+				const int cc = iz * dimXY + iy * dimX + ix;
+				for (int j = cellStart[cc]; j < cellStart[cc + 1]; ++j)
+				{
+					const int k = m_cellItems[j];
+					if (!boxesOverlap(boxMin, boxMax, m_boxes[2 * k], m_boxes[2 * k + 1]))
+						continue;
+					// A box spanning several cells meets an ellipsoid in each: keep the first (the candidate list is
+					// a handful long, a linear scan beats a stamp array here).
+					int m = 0;
+					while (m < nc && out[m] != k)
+						++m;
+					if (m == nc)
+						out[nc++] = k;
+				}
+			}
+	return nc;
+}

@@ -242,7 +242,7 @@ Result runCase(Kind kind, const Settings& s, const bodyfit::TriMesh& body, const
 		cc.m_skinOffset = btScalar(s.skin);
 		cc.m_friction = btScalar(s.friction);
 		const char* why = nullptr;
-		collider = btEllipsoidClothCollider::install(&world, &bodyObject, cc, &why);
+		collider = softSolver.installCollider(&world, &bodyObject, cc, &why);
 		if (!collider)
 			throw std::runtime_error(why ? why : "collider install failed");
 		r.settings = "skin " + bodyfit_bench::fmtGeneral(s.skin * 1e3) + " mm; friction " +

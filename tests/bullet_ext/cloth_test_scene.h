@@ -152,7 +152,7 @@ public:
 
 	btEllipsoidClothCollider* install(const btEllipsoidClothCollider::Config& config = btEllipsoidClothCollider::Config())
 	{
-		collider_ = btEllipsoidClothCollider::install(world_.getWorld(), body_.get(), config);
+		collider_ = world_.installCollider(body_.get(), config);
 		return collider_;
 	}
 
@@ -173,6 +173,7 @@ public:
 	}
 
 	btSoftRigidDynamicsWorld* world() { return world_.getWorld(); }
+	btEllipsoidClothSoftBodySolver* solver() { return world_.getSoftBodySolver(); }
 	btRigidBody* body() { return body_.get(); }
 	btDefaultMotionState* motion() { return motion_.get(); }
 	btEllipsoidCompoundShape* shape() { return shape_.get(); }

@@ -2,6 +2,7 @@
 // zeta >= 1 - 1e-6, no NaN/Inf), the paper's Figure 6 cases, push-out without oscillation, moving bodies,
 // installation and its error paths.
 #include "bullet_ext/cloth_test_scene.h"
+#include "src/btEllipsoidClothColliderCore.h" // drives one substep on crafted node paths
 
 #include "bodyfit/bridge/btBodyFitToBullet.h"
 #include "support/paths.h"
@@ -83,12 +84,14 @@ struct NodeProbe
 	btVector3 x(int i) const { return body->m_nodes[i].m_x; }
 };
 
-/// One substep of the collider alone on `probe`.
+/// One substep of the collider alone on `probe`, through the substep protocol the solver drives (every installed
+/// collider is a btEllipsoidClothColliderCore, src/btEllipsoidClothColliderCore.h).
 void runCollider(btEllipsoidClothCollider* c, NodeProbe& probe, btScalar dt = btScalar(1.0 / 60))
 {
-	c->beginSubstep(dt);
-	c->collide(probe.body, dt, nullptr);
-	c->endSubstep();
+	btEllipsoidClothColliderCore* core = static_cast<btEllipsoidClothColliderCore*>(c);
+	core->beginSubstep(dt);
+	core->collide(probe.body, dt, nullptr);
+	core->endSubstep();
 }
 
 double minZetaAt(const btEllipsoidCompoundShape& s, const btVector3& p)
@@ -118,16 +121,24 @@ TEST_CASE("install: one call, clear errors, Bullet's own response disabled", "[b
 		btCollisionDispatcher dispatcher(&config);
 		btDbvtBroadphase broadphase;
 		btSequentialImpulseConstraintSolver solver;
-		btSoftRigidDynamicsWorld world(&dispatcher, &broadphase, &solver, &config);
+		btSoftRigidDynamicsWorld world(&dispatcher, &broadphase, &solver, &config); // Bullet's default soft solver
+		const btVector3 at(0, 1, 0);
+		const btScalar mass = 1;
+		btSoftBody cloth(&world.getWorldInfo(), 1, &at, &mass);
+		world.addSoftBody(&cloth);
 		btEllipsoidCompoundShape shape;
 		shape.addEllipsoid(btVector3(0, 0, 0), btMatrix3x3::getIdentity(), btVector3(0.1, 0.1, 0.1));
 		btCollisionObject body;
 		body.setCollisionShape(&shape);
+		btEllipsoidClothSoftBodySolver ours; // not the world's
 		const char* why = nullptr;
-		CHECK(btEllipsoidClothCollider::install(&world, &body, btEllipsoidClothCollider::Config(), &why) == nullptr);
+		CHECK(ours.installCollider(&world, &body, btEllipsoidClothCollider::Config(), &why) == nullptr);
 		REQUIRE(why != nullptr);
-		CHECK(std::string(why).find("btEllipsoidClothSoftBodySolver") != std::string::npos);
-		CHECK(world.getSoftBodyArray().size() == 0); // the probe soft body was removed again
+		CHECK(std::string(why).find("not created with this solver") != std::string::npos);
+		CHECK(ours.getNumColliders() == 0);
+		CHECK(world.getSoftBodyArray().size() == 1); // the user's world is left as it was
+		CHECK(cloth.m_collisionDisabledObjects.size() == 0);
+		world.removeSoftBody(&cloth);
 	}
 	SECTION("a body whose shape is not made of ellipsoids is refused")
 	{
@@ -136,10 +147,13 @@ TEST_CASE("install: one call, clear errors, Bullet's own response disabled", "[b
 		btCollisionObject body;
 		body.setCollisionShape(&box);
 		const char* why = nullptr;
-		CHECK(btEllipsoidClothCollider::install(w.getWorld(), &body, btEllipsoidClothCollider::Config(), &why) == nullptr);
+		CHECK(w.installCollider(&body, btEllipsoidClothCollider::Config(), &why) == nullptr);
 		REQUIRE(why != nullptr);
 		CHECK(std::string(why).find("btEllipsoidCompoundShape") != std::string::npos);
-		CHECK(btEllipsoidClothCollider::install(nullptr, &body) == nullptr);
+		CHECK(w.getSoftBodySolver()->installCollider(nullptr, &body, btEllipsoidClothCollider::Config(), &why) == nullptr);
+		CHECK(std::string(why).find("world is null") != std::string::npos);
+		CHECK(w.getWorld()->getSoftBodyArray().size() == 0); // no probe soft body was added
+		CHECK(w.getSoftBodySolver()->getNumColliders() == 0);
 	}
 	SECTION("success: existing and later soft bodies skip Bullet's response to the body; uninstall restores it")
 	{
@@ -152,9 +166,12 @@ TEST_CASE("install: one call, clear errors, Bullet's own response disabled", "[b
 		scene.step(btScalar(1.0 / 60));
 		CHECK(after->m_collisionDisabledObjects.findLinearSearch(scene.body()) < after->m_collisionDisabledObjects.size());
 		const char* why = nullptr;
-		CHECK(btEllipsoidClothCollider::install(scene.world(), scene.body(), btEllipsoidClothCollider::Config(), &why) ==
+		CHECK(scene.solver()->installCollider(scene.world(), scene.body(), btEllipsoidClothCollider::Config(), &why) ==
 			  nullptr); // twice for the same body
-		CHECK(btEllipsoidClothCollider::uninstall(scene.world(), c));
+		CHECK(scene.solver()->getNumColliders() == 1);
+		CHECK(scene.solver()->uninstallCollider(c));
+		CHECK(scene.solver()->getNumColliders() == 0);
+		CHECK_FALSE(scene.solver()->uninstallCollider(c)); // gone
 		CHECK(before->m_collisionDisabledObjects.findLinearSearch(scene.body()) == before->m_collisionDisabledObjects.size());
 	}
 	SECTION("a bare btEllipsoidShape body works too")
@@ -163,7 +180,7 @@ TEST_CASE("install: one call, clear errors, Bullet's own response disabled", "[b
 		btEllipsoidShape shape(btVector3(0.2, 0.1, 0.3));
 		btCollisionObject body;
 		body.setCollisionShape(&shape);
-		btEllipsoidClothCollider* c = btEllipsoidClothCollider::install(w.getWorld(), &body);
+		btEllipsoidClothCollider* c = w.installCollider(&body);
 		REQUIRE(c != nullptr);
 		NodeProbe probe(&w.getWorldInfo(), {btVector3(0, 0.5, 0)});
 		probe.set(0, btVector3(0, 0.5, 0), btVector3(0, 0, 0));
@@ -191,7 +208,7 @@ TEST_CASE("the paper's velocity rule (eq. 10) keeps the guarantee too", "[bullet
 	ClothScene scene(twoSpheres());
 	scene.addPatch(btVector3(0, 0.35, 0), btScalar(0.8), 17);
 	btEllipsoidClothCollider::Config config;
-	config.m_useEq10 = true;
+	config.m_velocityRule = btEllipsoidClothCollider::PAPER_EQ10;
 	REQUIRE(scene.install(config));
 	dropAndCountResting(scene, btScalar(1.0 / 60), 90);
 	requireGuarantee(scene.report);

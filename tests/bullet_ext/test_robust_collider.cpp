@@ -16,7 +16,7 @@
 // "[.slow]" runs 10,000,000. The same file runs in the float and the float64 Bullet builds.
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
-
+#include "src/btEllipsoidClothColliderCore.h" // drives collide() on crafted node paths
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -342,8 +342,8 @@ void runSet(Rng& rng, btEllipsoidClothWorld& world, const SetSpec& spec, int pat
 	config.m_velocityRule = rng.uniform() < 0.5 ? btEllipsoidClothCollider::REMOVE_NORMAL_COULOMB
 												 : btEllipsoidClothCollider::PAPER_EQ10;
 	const char* whyNot = 0;
-	btEllipsoidClothCollider* collider =
-		btEllipsoidClothCollider::install(world.getWorld(), &body, config, &whyNot);
+	btEllipsoidClothColliderCore* collider =
+		static_cast<btEllipsoidClothColliderCore*>(world.installCollider(&body, config, &whyNot));
 	REQUIRE(collider != 0);
 	const btScalar dt = btScalar(1.0 / 120.0);
 	collider->beginSubstep(dt);
@@ -486,7 +486,7 @@ void runSet(Rng& rng, btEllipsoidClothWorld& world, const SetSpec& spec, int pat
 			}
 		}
 	}
-	btEllipsoidClothCollider::uninstall(world.getWorld(), collider);
+	world.getSoftBodySolver()->uninstallCollider(collider);
 }
 
 long long casesFromEnvironment(long long fallback)
@@ -586,7 +586,8 @@ void runRegressionPath(const ExactEllipsoid* ells, int count, const double* q3, 
 	btEllipsoidClothWorld world;
 	btEllipsoidClothCollider::Config config;
 	config.m_skinOffset = btScalar(0);
-	btEllipsoidClothCollider* collider = btEllipsoidClothCollider::install(world.getWorld(), &body, config);
+	btEllipsoidClothColliderCore* collider =
+		static_cast<btEllipsoidClothColliderCore*>(world.installCollider(&body, config));
 	REQUIRE(collider != 0);
 	const btScalar dt = btScalar(1.0 / 120.0);
 	collider->beginSubstep(dt);
@@ -621,7 +622,7 @@ void runRegressionPath(const ExactEllipsoid* ells, int count, const double* q3, 
 	// Push-out budget: the ray crosses each ellipsoid's chord at most once; 64 ulps of 1 km + 1e-6 m for rounding.
 	CHECK(dist(result, x) <= pushBudget + 64 * Real(SIMD_EPSILON) * 1000 + Real(1e-6));
 	CHECK(collider->getLastSubstepStats().m_minZeta >= btScalar(1));
-	btEllipsoidClothCollider::uninstall(world.getWorld(), collider);
+	world.getSoftBodySolver()->uninstallCollider(collider);
 }
 
 } // namespace

@@ -104,7 +104,7 @@ TEST_CASE("robust: 10,000 steps of a cloth on the fitted body in wind stay finit
 	btEllipsoidClothCollider::Config config;
 	config.m_friction = btScalar(0.6);
 	const char* whyNot = 0;
-	btEllipsoidClothCollider* collider = btEllipsoidClothCollider::install(dw, &body, config, &whyNot);
+	btEllipsoidClothCollider* collider = world.installCollider(&body, config, &whyNot);
 	REQUIRE(collider != 0);
 
 	// Kinetic-energy bound: a node can reach at most the free-fall speed from the cloth's height,

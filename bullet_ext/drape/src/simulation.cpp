@@ -324,7 +324,8 @@ DrapeSimulation::DrapeSimulation(const Scene& scene, const BodyData& body)
 		cfg.m_skinOffset = btScalar(scene_.collider.skinOffset);
 		cfg.m_friction = btScalar(scene_.effects.friction ? scene_.effects.friction->coefficient : 0.0);
 		const char* why = nullptr;
-		collider_ = btEllipsoidClothCollider::install(im.world.get(), im.bodyObject.get(), cfg, &why);
+		collider_ = static_cast<btEllipsoidClothSoftBodySolver*>(im.softSolver.get())
+						->installCollider(im.world.get(), im.bodyObject.get(), cfg, &why);
 		if (!collider_)
 			throw InvalidInputError(std::string("cannot install the ellipsoid cloth collider: ") +
 									(why ? why : "unknown reason"));
@@ -358,7 +359,7 @@ DrapeSimulation::~DrapeSimulation()
 	// calls m_sparsesdf.RemoveReferences, which walks every cached cell (minutes with ~1e5 cells and ~1e4 prisms).
 	im.world->getWorldInfo().m_sparsesdf.Reset();
 	if (collider_)
-		btEllipsoidClothCollider::uninstall(im.world.get(), collider_);
+		static_cast<btEllipsoidClothSoftBodySolver*>(im.softSolver.get())->uninstallCollider(collider_);
 	if (cloth_)
 	{
 		im.world->removeSoftBody(cloth_);

@@ -25,8 +25,7 @@ int main()
 	cloth->setTotalMass(0.2);
 	world.getWorld()->addSoftBody(cloth);
 	const char* why = 0;
-	btEllipsoidClothCollider* collider = btEllipsoidClothCollider::install(world.getWorld(), &body,
-																		   btEllipsoidClothCollider::Config(), &why);
+	btEllipsoidClothCollider* collider = world.installCollider(&body, btEllipsoidClothCollider::Config(), &why);
 	if (!collider)
 	{
 		std::printf("install refused: %s\n", why);

@@ -54,7 +54,7 @@ int main()
 	cloth->getCollisionShape()->setMargin(0.005);
 	cloth->setTotalMass(0.2);
 	world.getWorld()->addSoftBody(cloth);
-	btEllipsoidClothCollider* collider = btEllipsoidClothCollider::install(world.getWorld(), &body);
+	btEllipsoidClothCollider* collider = world.installCollider(&body);
 	if (!collider)
 		return 2;
 	for (int i = 0; i < 60; ++i)

@@ -13,12 +13,10 @@ after Bullet's soft-body position solve, through a btDefaultSoftBodySolver subcl
 #include "BulletSoftBody/btSoftBody.h"
 #include "BulletSoftBody/btSoftRigidDynamicsWorld.h"
 #include "LinearMath/btAlignedObjectArray.h"
-#include "LinearMath/btTransformUtil.h"
 
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 
 class btCollisionObject;
-class btEllipsoidClothSoftBodySolver;
 
 /// Counters of the collider. Per substep they are reset; the accumulated copy sums them until resetStats().
 struct btEllipsoidClothStats
@@ -44,16 +42,18 @@ struct btEllipsoidClothStats
 /// The cloth collider for one body whose collision shape is a btEllipsoidCompoundShape.
 ///
 /// Per substep, after Bullet's soft-body solve (x solved, q = start of the substep, v final), for every node with
-/// inverse mass > 0 of every soft body in the world:
-///  1. broadphase: grid cells of the body's world cache overlapping the node's path box;
-///  2. path test in the body frame: the start q is carried with the body from its previous to its current pose,
-///     then for every candidate ellipsoid the segment q -> x is intersected analytically (unit-ball form);
-///  3. earliest entry (smallest parameter along q -> x, i.e. nearest q) wins: the node is put there, plus the skin
-///     offset along the outward normal, and its velocity relative to the body is corrected (Config);
-///  4. q already inside (the body moved into the cloth, or a bad start): the node is pushed along the shortest
-///     candidate direction to the exit of the union of all ellipsoids (exact interval sweep along that ray), so it
-///     lands on the union surface inside no other ellipsoid; the result is deterministic (no oscillation);
-///  5. guarantee: the final position is checked against every nearby ellipsoid, zeta >= 1, no NaN/Inf.
+/// inverse mass > 0 of every soft body in the world, in four phases (bullet_ext/README.md says where each lives):
+///  1. broad phase: btEllipsoidWorldCache::PathQuery lists the ellipsoids the node's path q -> x, grown by the skin,
+///     can meet (the start q is first carried with the body from its previous to its current pose);
+///  2. narrow phase: the path is intersected with every candidate analytically, in each ellipsoid's whitened
+///     coordinates where it is the unit ball; the earliest entry (nearest q) wins;
+///  3. response: the node goes to that entry point plus the skin offset along the outward normal (shortened in a
+///     crease so it stays outside the neighbours), and its velocity relative to the body follows Config's rule;
+///  4. union push-out: a node whose q is already inside (the body moved into the cloth, or a bad start) is pushed
+///     along the shortest candidate direction to the exit of the union of all ellipsoids (exact interval sweep
+///     along that ray) that is connected to the outside; the result is deterministic (no oscillation).
+/// Guarantee: every processed node ends with zeta >= 1 for every ellipsoid (the smallest value is in the stats);
+/// NaN/Inf nodes are counted and left alone.
 /// Bullet's own soft response to the body is turned off by adding the body to every soft body's
 /// m_collisionDisabledObjects (soft bodies added later are handled too); rigid bodies keep colliding with it.
 ///
@@ -62,9 +62,10 @@ struct btEllipsoidClothStats
 /// bodies (pose read every substep). A plain btCollisionObject moved by hand jumps to its new pose in the first
 /// substep after the move, and its previous pose is still used for the path test.
 ///
+/// Installed and driven by btEllipsoidClothSoftBodySolver (installCollider); the substep protocol is internal.
 /// Supported worlds: btSoftRigidDynamicsWorld (and subclasses) built with btEllipsoidClothSoftBodySolver.
 /// btDeformableMultiBodyDynamicsWorld is not supported: it uses btDeformableBodySolver, where x and q swap
-/// meaning and the update happens in applyTransforms; install() takes a btSoftRigidDynamicsWorld, which it is not.
+/// meaning and the update happens in applyTransforms.
 class btEllipsoidClothCollider
 {
 public:
@@ -82,31 +83,20 @@ public:
 	{
 		btScalar m_skinOffset;   ///< metres the node is placed outside the surface (default 2 mm)
 		btScalar m_friction;     ///< Coulomb coefficient for REMOVE_NORMAL_COULOMB (default 0.3)
-		VelocityRule m_velocityRule;
-		bool m_useEq10;          ///< shortcut for m_velocityRule = PAPER_EQ10 (either one selects it)
+		VelocityRule m_velocityRule; ///< default REMOVE_NORMAL_COULOMB
 		bool m_disableBulletResponse; ///< add the body to m_collisionDisabledObjects of every soft body (default true)
 
 		Config()
 			: m_skinOffset(btScalar(0.002)),
 			  m_friction(btScalar(0.3)),
 			  m_velocityRule(REMOVE_NORMAL_COULOMB),
-			  m_useEq10(false),
 			  m_disableBulletResponse(true)
 		{
 		}
 	};
 
-	/// Installs the collider for `body` in `world`. The world must have been created with a
-	/// btEllipsoidClothSoftBodySolver (see btEllipsoidClothWorld), and the body's collision shape must be a
-	/// btEllipsoidCompoundShape (or a single btEllipsoidShape). The body need not be in the world.
-	/// \return the collider, owned by the solver (removed with uninstall or when the solver is destroyed), or 0 when
-	/// a precondition fails; the reason is written to *whyNot (a static one-line string) if whyNot is not 0.
-	static btEllipsoidClothCollider* install(btSoftRigidDynamicsWorld* world, btCollisionObject* body,
-											 const Config& config = Config(), const char** whyNot = 0);
-	/// Removes and deletes the collider; re-enables Bullet's own response for the body. \return false if not found.
-	static bool uninstall(btSoftRigidDynamicsWorld* world, btEllipsoidClothCollider* collider);
-
 	btCollisionObject* getBody() const { return m_body; }
+	btSoftRigidDynamicsWorld* getWorld() const { return m_world; }
 	const Config& getConfig() const { return m_config; }
 	void setConfig(const Config& config) { m_config = config; }
 
@@ -119,83 +109,59 @@ public:
 	/// World-space ellipsoids at the body's current pose (as used in the last substep).
 	const btEllipsoidWorldCache& getWorldCache() const { return m_current; }
 
-	/// Runs the response on one soft body for one substep of length dt (called by the solver; public for tests
-	/// and for custom pipelines). \param startPositions node positions at the start of the substep, or 0 to use m_q.
-	void collide(btSoftBody* softBody, btScalar dt, const btVector3* startPositions);
-
-	/// Called by the solver once per substep before collide(): moves the body pose forward (see class notes).
-	void beginSubstep(btScalar dt);
-	void endSubstep();
-
 	/// Forget the body's previous pose: call after teleporting the body, so the next substep does not treat the
 	/// jump as motion that sweeps the cloth along.
-	void resetBodyPose();
+	void resetBodyPose() { m_havePose = false; }
 
-	~btEllipsoidClothCollider();
+	virtual ~btEllipsoidClothCollider();
 
-private:
-	friend class btEllipsoidClothSoftBodySolver;
-	btEllipsoidClothCollider(btCollisionObject* body, const Config& config);
+protected:
+	btEllipsoidClothCollider(btSoftRigidDynamicsWorld* world, btCollisionObject* body, const Config& config);
 
+	btSoftRigidDynamicsWorld* m_world;
 	btCollisionObject* m_body;
 	Config m_config;
-	btEllipsoidCompoundShape* m_ownedCompound; ///< wraps a bare btEllipsoidShape body shape
-	const btEllipsoidCompoundShape* m_compound;
 	btEllipsoidWorldCache m_current;
-	btTransform m_previousPose;           ///< body pose used in the previous substep
-	btTransform m_currentPose;            ///< body pose for this substep
-	btTransform m_lastSeenWorldTransform; ///< kinematic bodies: world transform seen at the last step start
-	btTransform m_delta;                  ///< previous pose -> current pose (world to world)
-	btTransform m_deltaInverse;
-	btTransform m_stepStart;              ///< kinematic interpolation: pose at the start of the current step
-	btTransform m_stepTarget;             ///< kinematic interpolation: pose at its end
-	bool m_havePose;
-	bool m_moving;
-	int m_substepIndex;
-	int m_substepCount;
-	btScalar m_substepDt;
 	btEllipsoidClothStats m_lastStats;
 	btEllipsoidClothStats m_accumulatedStats;
-	btAlignedObjectArray<int> m_candidates;
-	btAlignedObjectArray<btScalar> m_candidateT;
-	btAlignedObjectArray<btScalar> m_intervals;
-	btAlignedObjectArray<int> m_intervalOwner;
+	bool m_havePose; ///< false: the next substep takes the body's pose as it is (no motion)
 
-	btTransform interpolatedKinematicPose();
-	void ensureResponseDisabled(btSoftBody* softBody);
-	btVector3 bodyVelocityAt(const btVector3& worldPoint, btScalar dt) const;
-	void applyVelocityRule(btSoftBody::Node& node, const btVector3& surfacePoint, const btVector3& normal,
-						   const btVector3& start, const btVector3& center, btScalar dt) const;
-	void collectRayIntervals(const btVector3& origin, const btVector3& dir, btScalar skin);
-	btScalar firstUncovered(btScalar from, btScalar scale, int* exitEllipsoid) const;
-	btScalar unionExitAlongRay(const btVector3& origin, const btVector3& dir, btScalar skin, int* exitEllipsoid);
-	btScalar realiseExit(const btVector3& origin, const btVector3& dir, btScalar skin, btVector3& out,
-						 int* exitEllipsoid, bool lastExit = false);
-	bool escapesUnion(const btVector3& p, const btVector3& preferred) const;
-	btScalar minZetaAll(const btVector3& p, int* which) const;
-	btScalar minZetaOver(const int* candidates, int count, const btVector3& p, int* which) const;
-	btScalar nudgeOut(const int* candidates, int count, btVector3& p, const btVector3& fallbackDir) const;
-	btScalar pushOut(btSoftBody::Node& node, const btVector3& from, const btVector3& start, btScalar dt);
+private:
+	btEllipsoidClothCollider(const btEllipsoidClothCollider&);
+	btEllipsoidClothCollider& operator=(const btEllipsoidClothCollider&);
 };
 
+class btEllipsoidClothColliderCore;
+
 /// btDefaultSoftBodySolver that runs every installed btEllipsoidClothCollider after the soft-body solve of each
-/// substep. Pass it as the 5th argument of btSoftRigidDynamicsWorld (the world does not own it), or use
-/// btEllipsoidClothWorld which builds and owns everything.
+/// substep. Pass it as the 5th argument of btSoftRigidDynamicsWorld (the world does not own it), then install the
+/// colliders through it; or use btEllipsoidClothWorld, which builds and owns everything.
 class btEllipsoidClothSoftBodySolver : public btDefaultSoftBodySolver
 {
 public:
 	btEllipsoidClothSoftBodySolver();
 	virtual ~btEllipsoidClothSoftBodySolver();
 
+	/// Installs the collider for `body` in `world`, which must have been built with this solver (Bullet 3.24's
+	/// btSoftRigidDynamicsWorld does not tell its solver; when the world already has soft bodies, their solver is
+	/// checked). The body's collision shape must be a btEllipsoidCompoundShape (or a single btEllipsoidShape). The
+	/// body need not be in the world. The collider acts on every soft body this solver steps.
+	/// \return the collider, owned by this solver (removed with uninstallCollider or when the solver is destroyed),
+	/// or 0 when a precondition fails; the reason is written to *whyNot (a static one-line string) if whyNot is not 0.
+	btEllipsoidClothCollider* installCollider(btSoftRigidDynamicsWorld* world, btCollisionObject* body,
+											  const btEllipsoidClothCollider::Config& config = btEllipsoidClothCollider::Config(),
+											  const char** whyNot = 0);
+	/// Removes and deletes the collider; re-enables Bullet's own response for the body. \return false if not found.
+	bool uninstallCollider(btEllipsoidClothCollider* collider);
+
+	int getNumColliders() const { return m_colliders.size(); }
+	btEllipsoidClothCollider* getCollider(int i) const;
+
 	virtual void predictMotion(btScalar solverdt);
 	virtual void solveConstraints(btScalar solverdt);
 
-	int getNumColliders() const { return m_colliders.size(); }
-	btEllipsoidClothCollider* getCollider(int i) const { return m_colliders[i]; }
-
 private:
-	friend class btEllipsoidClothCollider;
-	btAlignedObjectArray<btEllipsoidClothCollider*> m_colliders;
+	btAlignedObjectArray<btEllipsoidClothColliderCore*> m_colliders;
 	btAlignedObjectArray<btAlignedObjectArray<btVector3> > m_startPositions; ///< per soft body, only if diterations > 0
 };
 
@@ -211,6 +177,14 @@ public:
 	btSoftRigidDynamicsWorld* getWorld() { return m_world; }
 	btSoftBodyWorldInfo& getWorldInfo() { return m_world->getWorldInfo(); }
 	btEllipsoidClothSoftBodySolver* getSoftBodySolver() { return m_softBodySolver; }
+
+	/// btEllipsoidClothSoftBodySolver::installCollider for this world.
+	btEllipsoidClothCollider* installCollider(btCollisionObject* body,
+											  const btEllipsoidClothCollider::Config& config = btEllipsoidClothCollider::Config(),
+											  const char** whyNot = 0)
+	{
+		return m_softBodySolver->installCollider(m_world, body, config, whyNot);
+	}
 
 private:
 	btEllipsoidClothWorld(const btEllipsoidClothWorld&);

@@ -16,6 +16,18 @@ and btEllipsoidWorldCache: the same ellipsoids in world space for one body pose,
 
 #include "bodyfit/bullet_ext/btEllipsoidShape.h"
 
+#if defined(__SSE__) && !defined(BT_USE_DOUBLE_PRECISION)
+#include <xmmintrin.h>
+#define BT_ELLIPSOID_SSE_BOXES 1 ///< float build on x86: SSE for the path query's box filter
+#endif
+
+/// Inlined even into a large caller (the collider's node loop): SIMD_FORCE_INLINE is a plain inline on Linux.
+#if defined(__GNUC__)
+#define BT_ELLIPSOID_ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define BT_ELLIPSOID_ALWAYS_INLINE inline
+#endif
+
 /// One ellipsoid in compound-local space: {p : (p - c)^T Q (p - c) <= 1}, Q = R diag(a^-2) R^T.
 /// The columns of m_basis are the principal axes; m_semiAxes are the (scaled) semi-axes along them.
 ATTRIBUTE_ALIGNED16(struct)
@@ -167,6 +179,104 @@ public:
 	/// Grid broadphase: indices of entries whose world box overlaps the world box [aabbMin, aabbMax], each once.
 	void query(const btVector3& aabbMin, const btVector3& aabbMax, btAlignedObjectArray<int>& out) const;
 
+	/// The cloth collider's broadphase: candidates for node paths q -> x (world space) grown by a radius on every
+	/// side. Prepared once per cache state and radius (the constructor), then asked per node. candidates() writes every
+	/// entry whose world box overlaps the path's box [min(q, x) - radius, max(q, x) + radius] and that the grid
+	/// lists near the path, each once; it returns a superset of the entries whose ellipsoid the grown path meets
+	/// (the grid's lists are conservative, see buildLists). 0 when the box misses the union's box.
+	/// The object reads the cache: it is valid until the next update() that recomputes.
+	class PathQuery
+	{
+	public:
+		/// Prepares the query for the cache's current state and a radius >= 0 (the collider's skin offset).
+		PathQuery(const btEllipsoidWorldCache& cache, btScalar radius);
+		/// Writes the candidates to out (room for size() indices) and returns their number. Inline (below): it
+		/// runs once per cloth node and substep.
+		int candidates(const btVector3& q, const btVector3& x, int* out) const;
+
+	private:
+		// Copies of the cache's grid (plain pointers and values: the per-node call reads no array objects).
+		int m_count;              ///< number of entries
+		int m_dims[3];
+		const btVector3* m_boxes; ///< entry boxes, [2i] min and [2i + 1] max
+		const int* m_cellStart;
+		const int* m_cellItems;
+		const int* m_wideStart;
+		const int* m_wideItems;
+		btVector3 m_unionMin;
+		btVector3 m_unionMax;
+		btScalar m_invCell;
+		btVector3 m_radiusBox;    ///< (radius, radius, radius)
+		btVector3 m_radiusCells;  ///< the same in cell units
+		btTransform m_toGrid;     ///< world -> grid units: f = (toLocal * p - gridOrigin) / cell
+		btVector3 m_gridShift;    ///< axis-aligned bodies: f = (p - m_gridShift) / cell
+		bool m_axisAligned;       ///< the body has no rotation (the common static case)
+		btScalar m_radius;
+		btScalar m_dilation;      ///< the cell lists' dilation less the rounding allowance (cells)
+		btScalar m_wideDilation;  ///< the same for the wide lists
+
+		/// The path box leaves the grown cell of its midpoint: every cell under it, each ellipsoid once.
+		int walkCells(const btVector3& q, const btVector3& x, const btVector3& boxMin, const btVector3& boxMax,
+					  int* out) const;
+
+		/// Cell index along one axis of a coordinate in cell units, clamped to [0, dim - 1] (f finite).
+		static int cellIndex(btScalar f, int dim)
+		{
+			// Clamped in floating point (max, min: no branches), then truncated.
+			return int(btMin(btMax(f, btScalar(0)), btScalar(dim - 1)));
+		}
+		static bool boxesOverlap(const btVector3& aMin, const btVector3& aMax, const btVector3& bMin,
+								 const btVector3& bMax)
+		{
+			return !(aMin.x() > bMax.x() || aMax.x() < bMin.x() || aMin.y() > bMax.y() || aMax.y() < bMin.y() ||
+					 aMin.z() > bMax.z() || aMax.z() < bMin.z());
+		}
+		/// The world box test without branches (the outcome is a coin toss per candidate): writes index(j) for
+		/// j < n to out, keeping those whose box overlaps [boxMin, boxMax] (closed intervals on x, y and z; four
+		/// lanes compared at once where SSE is available, the fourth ignored). \return the number kept.
+		template <class Index>
+		static int filterByBox(Index index, int n, const btVector3* boxes, const btVector3& boxMin,
+							   const btVector3& boxMax, int* out)
+		{
+#ifdef BT_ELLIPSOID_SSE_BOXES
+			const __m128 mn = _mm_setr_ps(boxMin.x(), boxMin.y(), boxMin.z(), btScalar(0));
+			const __m128 mx = _mm_setr_ps(boxMax.x(), boxMax.y(), boxMax.z(), btScalar(0));
+#endif
+			int nc = 0;
+			for (int j = 0; j < n; ++j)
+			{
+				const int k = index(j);
+				const btVector3& lo = boxes[2 * k];
+				const btVector3& hi = boxes[2 * k + 1];
+				out[nc] = k;
+#ifdef BT_ELLIPSOID_SSE_BOXES
+				const __m128 a = _mm_cmple_ps(mn, _mm_loadu_ps(&hi.x()));
+				const __m128 b = _mm_cmpge_ps(mx, _mm_loadu_ps(&lo.x()));
+				nc += (_mm_movemask_ps(_mm_and_ps(a, b)) & 7) == 7 ? 1 : 0;
+#else
+				nc += ((boxMin.x() <= hi.x()) & (boxMax.x() >= lo.x()) & (boxMin.y() <= hi.y()) & (boxMax.y() >= lo.y()) &
+					   (boxMin.z() <= hi.z()) & (boxMax.z() >= lo.z()))
+						  ? 1
+						  : 0;
+#endif
+			}
+			return nc;
+		}
+		/// Indices of a cell list.
+		struct ListIndex
+		{
+			const int* m_list;
+			int operator()(int j) const { return m_list[j]; }
+		};
+		/// Every entry: 0, 1, ..., n - 1.
+		struct AllIndices
+		{
+			int operator()(int j) const { return j; }
+		};
+	};
+	/// Packed narrow-phase records, kPackedStride floats per entry (0 when the cache is empty).
+	const btScalar* getPackedRecords() const { return m_packed.size() ? &m_packed[0] : 0; }
+
 private:
 	btAlignedObjectArray<Entry> m_entries;
 	btAlignedObjectArray<btVector3> m_boxes; ///< entry i's world box: [2i] min, [2i+1] max (compact, for the broadphase)
@@ -210,7 +320,47 @@ private:
 			return m_dims[k] - 1;
 		return int(f);
 	}
-	friend class btEllipsoidClothCollider;
 };
+
+BT_ELLIPSOID_ALWAYS_INLINE int btEllipsoidWorldCache::PathQuery::candidates(const btVector3& q, const btVector3& x, int* out) const
+{
+	if (m_count == 0)
+		return 0;
+	btVector3 boxMin = x, boxMax = x;
+	boxMin.setMin(q);
+	boxMax.setMax(q);
+	boxMin -= m_radiusBox;
+	boxMax += m_radiusBox;
+	if (!boxesOverlap(boxMin, boxMax, m_unionMin, m_unionMax))
+		return 0;
+	// In cell units f = (p - origin) / cell of the body frame (the grid's). The path grown by the radius lies in the
+	// cube of half-size |x - q| / 2 + radius around its midpoint m (a rotation keeps lengths). Fast path: that cube
+	// lies within the grown cell of m's cell (the cell plus the dilation on every side, less the rounding allowance),
+	// so that cell's list holds every ellipsoid the path can meet; its entries are then filtered by their world
+	// boxes. Next, the same with the wide lists (a 3 x 3 x 3 block). Otherwise (a node moving about a cell in one
+	// substep) every cell under the box.
+	const btScalar invCell = m_invCell;
+	const int dimX = m_dims[0], dimY = m_dims[1], dimZ = m_dims[2];
+	const btVector3 mid = (x + q) * btScalar(0.5);
+	const btVector3 fm = m_axisAligned ? (mid - m_gridShift) * invCell : m_toGrid * mid;
+	const int cx = cellIndex(fm.x(), dimX), cy = cellIndex(fm.y(), dimY), cz = cellIndex(fm.z(), dimZ);
+	const btVector3 frac = fm - btVector3(btScalar(cx), btScalar(cy), btScalar(cz));
+	const btScalar faceGap = btMin(btMin(btMin(frac.x(), frac.y()), frac.z()),
+								   btScalar(1) - btMax(btMax(frac.x(), frac.y()), frac.z()));
+	// |x - q| / 2 rounded up a little (the midpoint and the length carry rounding too).
+	const btScalar halfPath = btSqrt((x - q).length2()) * btScalar(0.5 + 1e-5) + m_radius;
+	const btScalar reach = halfPath * invCell - faceGap;
+	const int c = cz * dimX * dimY + cy * dimX + cx;
+	const int* start;
+	const int* items;
+	if (reach <= m_dilation)
+		start = m_cellStart, items = m_cellItems;
+	else if (reach <= m_wideDilation)
+		start = m_wideStart, items = m_wideItems;
+	else
+		return walkCells(q, x, boxMin, boxMax, out);
+	const ListIndex list = {items + start[c]};
+	return filterByBox(list, start[c + 1] - start[c], m_boxes, boxMin, boxMax, out);
+}
 
 #endif // BT_ELLIPSOID_COMPOUND_SHAPE_H

@@ -1,0 +1,48 @@
+/*
+bodyfit: Bullet extension for ellipsoid body colliders. Private to bodyfit::bullet_ext (not installed).
+The collider's response to a node whose path q -> x entered the union: placement at the earliest entry plus the skin
+(with the crease rules) and the velocity rule. See btEllipsoidClothResponse.cpp.
+*/
+
+#ifndef BT_ELLIPSOID_CLOTH_RESPONSE_H
+#define BT_ELLIPSOID_CLOTH_RESPONSE_H
+
+#include "BulletSoftBody/btSoftBody.h"
+
+#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
+#include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
+
+#include "src/btEllipsoidNarrowPhase.h"
+
+/// Where a node whose path entered the union goes.
+struct btEntryPlacement
+{
+	btVector3 m_surface; ///< the earliest entry point, on the surface of the entered ellipsoid
+	btVector3 m_normal;  ///< outward normal there (the normalised sum over tied entries in a crease)
+	btVector3 m_placed;  ///< m_surface + skin * m_normal
+	btVector3 m_center;  ///< centre of the entered ellipsoid (for eq. 10)
+};
+
+/// The placement for the earliest entry of the path test over the candidates cand[0, nc) with entry parameters
+/// tvals (btEarliestEntry): entries within 1 micrometre of the earliest along the path are a tie (the path meets a
+/// crease of the union, Gong et al. 2018 Figure 6 case 1), and the skin offset then goes along the sum of their
+/// normals, so the answer does not depend on the order of the ellipsoids.
+void btPlaceAtEntry(const btEllipsoidWorldCache& cache, const btPathEntry& entry, const int* cand, const btScalar* tvals,
+					int nc, const btVector3& q, const btVector3& x, btScalar skin, btEntryPlacement& out);
+
+/// Makes the placed point outside every candidate: the entry point is outside the others (it is the earliest
+/// entry), but in a crease the skin offset can reach into a neighbour; the offset is then shortened (bisection) to
+/// the largest part that stays outside, and a surface point that rounds to inside is stepped out by a few ulps.
+/// \return true with `point` and its smallest zeta over the candidates `zeta` (>= 1) if that worked; false with the
+/// point reached (the caller pushes out of the union from there).
+bool btKeepOutsideCandidates(const btEllipsoidWorldCache& cache, const int* cand, int nc, const btEntryPlacement& placed,
+							 btScalar skin, btVector3& point, btScalar& zeta);
+
+/// The velocity rule after a node is placed on the surface at `surfacePoint` with outward `normal`; velocities are
+/// relative to the body surface, whose velocity there is `bodyVelocity`. `start` is the node's start of the substep
+/// and `center` the centre of the ellipsoid it met (eq. 10). Config::m_velocityRule selects the rule.
+void btApplyVelocityRule(const btEllipsoidClothCollider::Config& config, const btVector3& bodyVelocity,
+						 btSoftBody::Node& node, const btVector3& surfacePoint, const btVector3& normal,
+						 const btVector3& start, const btVector3& center);
+
+#endif // BT_ELLIPSOID_CLOTH_RESPONSE_H

@@ -1,0 +1,383 @@
+/*
+bodyfit: Bullet extension for ellipsoid body colliders. See btEllipsoidUnionPushOut.h.
+*/
+
+#include "src/btEllipsoidUnionPushOut.h"
+
+#include "src/btEllipsoidNarrowPhase.h"
+
+namespace
+{
+
+/// Push-out: at most this many steps along one ray while its rounded exit point is still inside an ellipsoid (the
+/// margin doubles from 2 ulps of the coordinates, so 2^40 ulps is far past any union).
+const int kMaxRealiseSteps = 40;
+
+inline bool containsPoint(const btEllipsoidWorldCache::Entry& e, const btVector3& p)
+{
+	return !(p.x() > e.m_aabbMax.x() || p.x() < e.m_aabbMin.x() || p.y() > e.m_aabbMax.y() || p.y() < e.m_aabbMin.y() ||
+			 p.z() > e.m_aabbMax.z() || p.z() < e.m_aabbMin.z());
+}
+
+/// Largest absolute coordinate of p plus 1 mm: the scale of the rounding tolerances along a ray from p.
+inline btScalar coordinateScale(const btVector3& p)
+{
+	return p.absolute()[p.absolute().maxAxis()] + btScalar(1e-3);
+}
+
+} // namespace
+
+btScalar btEllipsoidUnionPushOut::minZetaAll(const btEllipsoidWorldCache& cache, const btVector3& p, int* which)
+{
+	btScalar best = SIMD_INFINITY;
+	int bestIndex = -1;
+	for (int k = 0; k < cache.size(); ++k)
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[k];
+		if (!containsPoint(e, p))
+			continue;
+		const btScalar z = (e.m_whiten * (p - e.m_center)).length2();
+		if (z < best)
+		{
+			best = z;
+			bestIndex = k;
+		}
+	}
+	if (which)
+		*which = bestIndex;
+	return best;
+}
+
+void btEllipsoidUnionPushOut::pushOut(const btEllipsoidWorldCache& cache, const btVector3& from, btScalar skin,
+									  btPushOutResult& out)
+{
+	m_cache = &cache;
+	out.m_enclosed = false;
+	out.m_fallback = false;
+	btVector3 dirs[kMaxDirections];
+	const int ndirs = candidateDirections(from, dirs);
+	if (ndirs == 0)
+	{
+		// Not inside anything (the caller's tolerance): nothing to do.
+		out.m_moved = false;
+		out.m_point = from;
+		out.m_zeta = minZetaAll(cache, from, 0);
+		return;
+	}
+	out.m_moved = true;
+	// Nominal exit of the union along every candidate direction, then the shortest that a btScalar point realises
+	// and that is connected to the outside.
+	btScalar nominal[kMaxDirections];
+	for (int d = 0; d < ndirs; ++d)
+		nominal[d] = unionExitAlongRay(from, dirs[d], skin, 0);
+	btVector3 point = from;
+	int bestExit = -1;
+	int bestDir = bestEscapingExit(from, dirs, nominal, ndirs, skin, point, bestExit);
+	if (bestDir < 0)
+	{
+		bestDir = shortestLastChordExit(from, dirs, ndirs, skin, point, bestExit);
+		out.m_enclosed = bestDir >= 0;
+	}
+	btVector3 normal;
+	if (bestDir >= 0)
+	{
+		out.m_zeta = minZetaAll(cache, point, 0);
+		normal = dirs[bestDir];
+		if (bestExit >= 0)
+		{
+			const btEllipsoidWorldCache::Entry& e = cache[bestExit];
+			const btVector3 g = btWhitenedNormal(e.m_whiten, e.m_whiten * (point - e.m_center));
+			const btScalar gl = g.length();
+			if (gl > SIMD_EPSILON)
+				normal = g / gl;
+		}
+	}
+	else
+	{
+		int d0 = 0;
+		for (int d = 1; d < ndirs; ++d)
+			if (nominal[d] < nominal[d0])
+				d0 = d;
+		leaveUnionBox(from, dirs[d0], skin, point);
+		out.m_zeta = minZetaAll(cache, point, 0);
+		normal = dirs[d0];
+		out.m_fallback = true;
+	}
+	out.m_point = point;
+	out.m_normal = normal;
+	out.m_center = bestExit >= 0 ? cache[bestExit].m_center : from;
+}
+
+int btEllipsoidUnionPushOut::candidateDirections(const btVector3& from, btVector3* dirs) const
+{
+	// For each ellipsoid containing the point: its outward normal there (the direction to its nearest surface point
+	// for shallow penetrations) and both directions of its three principal axes (the way out of a thin ellipsoid near
+	// its mid-plane). The exit of the whole union is measured along each; the shortest wins.
+	const btEllipsoidWorldCache& cache = *m_cache;
+	int ndirs = 0;
+	for (int k = 0; k < cache.size() && ndirs + 7 <= kMaxDirections; ++k)
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[k];
+		if (!containsPoint(e, from))
+			continue;
+		const btVector3 u = e.m_whiten * (from - e.m_center);
+		const btScalar z = u.length2();
+		if (!(z < btScalar(1)))
+			continue;
+		const btVector3 g = btWhitenedNormal(e.m_whiten, u);
+		const btScalar gl = g.length();
+		if (gl > SIMD_EPSILON)
+			dirs[ndirs++] = g / gl;
+		for (int axis = 0; axis < 3; ++axis)
+		{
+			btVector3 column(e.m_unwhiten[0][axis], e.m_unwhiten[1][axis], e.m_unwhiten[2][axis]);
+			column.normalize();
+			dirs[ndirs++] = column;
+			dirs[ndirs++] = -column;
+		}
+	}
+	return ndirs;
+}
+
+int btEllipsoidUnionPushOut::bestEscapingExit(const btVector3& from, const btVector3* dirs, const btScalar* nominal,
+											  int ndirs, btScalar skin, btVector3& out, int& bestExit)
+{
+	// A realised exit is never shorter than the nominal one, so directions are tried in nominal order until the next
+	// nominal exit is longer than the best realised one. An exit into a pocket enclosed by the union is not an exit:
+	// the node would rest outside every ellipsoid but inside the body. Only exits from which some ray escapes the
+	// union are taken.
+	btScalar bestS = SIMD_INFINITY;
+	int bestDir = -1;
+	bool tried[kMaxDirections];
+	for (int d = 0; d < ndirs; ++d)
+		tried[d] = false;
+	for (int round = 0; round < ndirs; ++round)
+	{
+		int next = -1;
+		for (int d = 0; d < ndirs; ++d)
+			if (!tried[d] && (next < 0 || nominal[d] < nominal[next]))
+				next = d;
+		if (next < 0 || !(nominal[next] < bestS))
+			break;
+		tried[next] = true;
+		btVector3 p;
+		int exit = -1;
+		const btScalar s = realiseExit(from, dirs[next], skin, p, &exit, false);
+		if (s < bestS && escapesUnion(p, dirs[next]))
+		{
+			bestS = s;
+			bestDir = next;
+			bestExit = exit;
+			out = p;
+		}
+	}
+	return bestDir;
+}
+
+int btEllipsoidUnionPushOut::shortestLastChordExit(const btVector3& from, const btVector3* dirs, int ndirs,
+												   btScalar skin, btVector3& out, int& bestExit)
+{
+	// Every nearest exit led into a pocket (or was not realised): leave along each ray past its last chord, which no
+	// pocket can contain, and keep the shortest.
+	btScalar bestS = SIMD_INFINITY;
+	int bestDir = -1;
+	for (int d = 0; d < ndirs; ++d)
+	{
+		btVector3 p;
+		int exit = -1;
+		const btScalar s = realiseExit(from, dirs[d], skin, p, &exit, true);
+		if (s < bestS)
+		{
+			bestS = s;
+			bestDir = d;
+			bestExit = exit;
+			out = p;
+		}
+	}
+	return bestDir;
+}
+
+void btEllipsoidUnionPushOut::leaveUnionBox(const btVector3& from, const btVector3& dir, btScalar skin,
+											btVector3& out) const
+{
+	// Safe fallback (no direction realised an exit): leave the box of the whole union along dir, grown by the skin
+	// and a margin of 1e-5 of its size plus 8 ulps of the coordinates. A point outside an ellipsoid's box is outside
+	// the ellipsoid (|p - c|_i > extent_i implies zeta > 1 by Cauchy-Schwarz), and the margin is far above zeta's
+	// rounding error. Leaving one slab of the grown box leaves the box: the smallest slab exit (|dir| = 1, so its
+	// largest component is >= 1/sqrt(3) and at least one slab is crossed).
+	const btVector3 lo = m_cache->getAabbMin(), hi = m_cache->getAabbMax();
+	const btScalar big = btMax(lo.absolute()[lo.absolute().maxAxis()], hi.absolute()[hi.absolute().maxAxis()]);
+	const btScalar grow = skin + (hi - lo).length() * btScalar(1e-5) + SIMD_EPSILON * btScalar(8) * big;
+	btScalar sBox = SIMD_INFINITY;
+	for (int k = 0; k < 3; ++k)
+	{
+		if (dir[k] > btScalar(0.01))
+			sBox = btMin(sBox, (hi[k] + grow - from[k]) / dir[k]);
+		else if (dir[k] < btScalar(-0.01))
+			sBox = btMin(sBox, (lo[k] - grow - from[k]) / dir[k]);
+	}
+	out = from + dir * btMax(sBox, btScalar(0));
+}
+
+void btEllipsoidUnionPushOut::collectRayIntervals(const btVector3& origin, const btVector3& dir, btScalar skin)
+{
+	// Every ellipsoid's chord along the ray, widened by the skin on both sides, sorted by start. The quadratic is set
+	// up relative to each ellipsoid's centre (origin - c is exact or nearly so for nearby points, also 1 km out).
+	const btEllipsoidWorldCache& cache = *m_cache;
+	m_intervals.resize(0);
+	m_intervalOwner.resize(0);
+	for (int k = 0; k < cache.size(); ++k)
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[k];
+		const btUnitBallQuadratic quadratic =
+			btUnitBallQuadratic::ofLine(e.m_whiten * (origin - e.m_center), e.m_whiten * dir);
+		if (!(quadratic.m_a > btScalar(0)))
+			continue;
+		const btScalar disc = quadratic.discriminant();
+		if (disc < btScalar(0))
+			continue;
+		btScalar s0, s1;
+		quadratic.roots(disc, s0, s1);
+		if (s1 + skin < btScalar(0))
+			continue;
+		m_intervals.push_back(s0 - skin);
+		m_intervals.push_back(s1 + skin);
+		m_intervalOwner.push_back(k);
+	}
+	const int count = m_intervalOwner.size();
+	// Insertion sort by start (few intervals).
+	for (int i = 1; i < count; ++i)
+	{
+		const btScalar s0 = m_intervals[2 * i], s1 = m_intervals[2 * i + 1];
+		const int owner = m_intervalOwner[i];
+		int j = i - 1;
+		while (j >= 0 && m_intervals[2 * j] > s0)
+		{
+			m_intervals[2 * j + 2] = m_intervals[2 * j];
+			m_intervals[2 * j + 3] = m_intervals[2 * j + 1];
+			m_intervalOwner[j + 1] = m_intervalOwner[j];
+			--j;
+		}
+		m_intervals[2 * j + 2] = s0;
+		m_intervals[2 * j + 3] = s1;
+		m_intervalOwner[j + 1] = owner;
+	}
+}
+
+btScalar btEllipsoidUnionPushOut::firstUncovered(btScalar from, btScalar scale, int* exitEllipsoid) const
+{
+	// Sweep over the sorted intervals: the first parameter s >= from that no interval covers. Intervals that start
+	// within a few ulps of the current s count as overlapping: two ellipsoids that touch share a boundary point, and
+	// stopping there would leave the node on (rounding: inside) the second one.
+	const int count = m_intervalOwner.size();
+	btScalar s = from;
+	int exit = -1;
+	for (int i = 0; i < count; ++i)
+	{
+		if (m_intervals[2 * i] > s + SIMD_EPSILON * btScalar(8) * (scale + btFabs(s)))
+			break;
+		if (m_intervals[2 * i + 1] > s)
+		{
+			s = m_intervals[2 * i + 1];
+			exit = m_intervalOwner[i];
+		}
+	}
+	if (exitEllipsoid)
+		*exitEllipsoid = exit;
+	return s;
+}
+
+btScalar btEllipsoidUnionPushOut::unionExitAlongRay(const btVector3& origin, const btVector3& dir, btScalar skin,
+													int* exitEllipsoid)
+{
+	collectRayIntervals(origin, dir, skin);
+	return firstUncovered(btScalar(0), coordinateScale(origin), exitEllipsoid);
+}
+
+btScalar btEllipsoidUnionPushOut::realiseExit(const btVector3& origin, const btVector3& dir, btScalar skin,
+											  btVector3& out, int* exitEllipsoid, bool lastExit)
+{
+	// The exact union exit s along the ray is a real number; the node needs a btScalar point. Rounding
+	// origin + dir * s to the coordinate grid (6e-5 m at 1 km in float) can land a hair inside the ellipsoid the ray
+	// leaves, or, where the exit sits on a crease or a touching point, inside the neighbour. The point is therefore
+	// checked with the same zeta evaluation as the guarantee, against every ellipsoid near it; while one contains it,
+	// the parameter moves on along the same ray, past that ellipsoid's chord (and then to the next uncovered
+	// parameter of the union), by a margin that starts at 2 ulps of the coordinates and doubles. s only grows, so
+	// this cannot oscillate between two ellipsoids (stepping along surface normals did: in a crease the normal of
+	// one points into the other). Past the last chord every point of the ray is outside the union in exact
+	// arithmetic, and the doubling margin outgrows the rounding, so the loop ends outside; kMaxRealiseSteps bounds it.
+	collectRayIntervals(origin, dir, skin);
+	const btScalar scale = coordinateScale(origin);
+	int exit = -1;
+	// With lastExit, start past the last chord along the ray (the end of the ray is then free of the union, so the
+	// point cannot be in a pocket the union encloses); otherwise at the first uncovered parameter.
+	btScalar start = btScalar(0);
+	if (lastExit)
+		for (int i = 0; i < m_intervalOwner.size(); ++i)
+			if (m_intervals[2 * i + 1] > start)
+			{
+				start = m_intervals[2 * i + 1];
+				exit = m_intervalOwner[i];
+			}
+	int firstExit = -1;
+	btScalar s = firstUncovered(start, scale, &firstExit);
+	if (firstExit >= 0)
+		exit = firstExit;
+	btScalar margin = SIMD_EPSILON * btScalar(2) * (scale + btFabs(s));
+	btScalar z = SIMD_INFINITY;
+	for (int attempt = 0; attempt < kMaxRealiseSteps; ++attempt)
+	{
+		out = origin + dir * s;
+		int worst = -1;
+		z = minZetaAll(*m_cache, out, &worst);
+		if (z >= btScalar(1))
+			break;
+		btScalar next = s + margin;
+		for (int i = 0; i < m_intervalOwner.size(); ++i)
+			if (m_intervalOwner[i] == worst)
+				next = btMax(next, m_intervals[2 * i + 1] + margin);
+		int nextExit = -1;
+		s = firstUncovered(next, scale, &nextExit);
+		if (nextExit >= 0)
+			exit = nextExit;
+		else if (exit < 0)
+			exit = worst;
+		margin *= btScalar(2);
+	}
+	if (exitEllipsoid)
+		*exitEllipsoid = exit;
+	return z >= btScalar(1) ? s : SIMD_INFINITY;
+}
+
+bool btEllipsoidUnionPushOut::escapesUnion(const btVector3& p, const btVector3& preferred) const
+{
+	// A point outside every ellipsoid can still sit in a pocket that the union encloses (fitted bodies have them
+	// under the skin, where neighbouring ellipsoids meet near the surface but not deeper in). Such a point is not
+	// reachable from outside. It is certainly not in a pocket if some ray from it misses the union: try the
+	// preferred direction, then the 26 directions of the 3x3x3 lattice. A ray is blocked when the far root of an
+	// ellipsoid's quadratic lies ahead; the quadratic is set up relative to each centre.
+	const btEllipsoidWorldCache& cache = *m_cache;
+	for (int d = -1; d < 26; ++d)
+	{
+		btVector3 dir = preferred;
+		if (d >= 0)
+		{
+			const int i = d < 13 ? d : d + 1; // lattice index 0..26 without the centre (13)
+			dir = btVector3(btScalar(i % 3 - 1), btScalar((i / 3) % 3 - 1), btScalar(i / 9 - 1)).normalized();
+		}
+		bool blocked = false;
+		for (int k = 0; k < cache.size() && !blocked; ++k)
+		{
+			const btEllipsoidWorldCache::Entry& e = cache[k];
+			const btUnitBallQuadratic quadratic =
+				btUnitBallQuadratic::ofLine(e.m_whiten * (p - e.m_center), e.m_whiten * dir);
+			const btScalar disc = quadratic.discriminant();
+			if (!(quadratic.m_a > btScalar(0)) || disc < btScalar(0))
+				continue;
+			blocked = quadratic.exitAhead(disc);
+		}
+		if (!blocked)
+			return true;
+	}
+	return false;
+}
