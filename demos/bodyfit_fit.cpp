@@ -3,19 +3,23 @@
 #include "bodyfit/fitting/ellipsoid_io.h"
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/segmentation.h"
+#include "bodyfit/fitting/skinned_fit.h"
 #include "common/cli.h"
 
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 namespace
 {
 
 const char* kUsage = R"(usage: bodyfit-fit MESH -o OUT.json [options]
 
-Fits ellipsoids to a body mesh (any format assimp reads) and writes them as JSON.
+Fits ellipsoids to a body mesh (any format assimp reads) and writes them as JSON. A rigged file (a
+skinned mesh: glTF/GLB, FBX, ...) is fitted in its bind pose and the fit records the bone bindings
+that let the ellipsoids follow every clip of the rig.
 
   -o OUT.json            output file (its directory is created if missing)
   --mu-torso R           error threshold E_j for the torso (default 0.012 = 1.2% of the height)
@@ -169,7 +173,12 @@ int main(int argc, char** argv)
 
 		// Load.
 		const Clock::time_point t0 = Clock::now();
-		const bodyfit::LoadedMesh loaded = bodyfit::loadTriMesh(meshPath, load);
+		// A rigged file (a skinned mesh): fit its bind pose and record the bone bindings (skinned_fit.h).
+		std::optional<bodyfit::Rig> rig;
+		if (bodyfit::hasSkinnedMesh(meshPath))
+			rig = bodyfit::loadRig(meshPath, {load, "", /*requireAnimation=*/false});
+		const bodyfit::LoadedMesh loaded =
+			rig ? bodyfit::LoadedMesh{rig->bindMesh, rig->bindMesh, rig->report} : bodyfit::loadTriMesh(meshPath, load);
 		const double loadMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 		const bodyfit::TriMesh& mesh = loaded.mesh;
 
@@ -216,6 +225,13 @@ int main(int argc, char** argv)
 			std::cerr << "bodyfit-fit: warning: " << warning << "\n";
 		}
 
+		if (rig)
+		{
+			const Clock::time_point tBind = Clock::now();
+			fit.skinning = std::make_shared<const bodyfit::SkinBinding>(bodyfit::bindSkin(*rig, fit));
+			fit.setTiming("skinning.bind", std::chrono::duration<double, std::milli>(Clock::now() - tBind).count());
+		}
+
 		// Outputs.
 		bodyfit_cli::ensureParentDirectory(outPath);
 		bodyfit::writeEllipsoidJson(outPath, fit);
@@ -235,6 +251,10 @@ int main(int argc, char** argv)
 		if (!segmentsPath.empty())
 			extraOutputs += (extraOutputs.empty() ? "" : ", ") + segmentsPath;
 		printSummary(loaded, fit, regionSummary, outPath, extraOutputs);
+		if (rig)
+			std::cout << "  skinning  rig with " << rig->boneCount() << " bones, " << rig->clips.size()
+					  << " clip(s): bind pose fitted, " << fit.skinning->vertexPoints + fit.skinning->coverPoints
+					  << " skin points bound to the ellipsoids (" << ms(fit.timingMs("skinning.bind")) << ")\n";
 		return bodyfit_cli::kExitOk;
 	});
 }

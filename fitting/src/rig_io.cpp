@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <map>
 #include <sstream>
@@ -306,6 +307,11 @@ AnimationClip readClip(const aiAnimation* anim, unsigned index, const std::strin
 
 bool hasSkinnedMesh(const std::string& path)
 {
+	// Formats without skeletons are not read twice (the static loader reads them anyway).
+	std::string ext = path.substr(std::min(path.size(), path.find_last_of('.') + 1));
+	std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+	if (path.find('.') != std::string::npos && (ext == "obj" || ext == "ply" || ext == "stl" || ext == "off"))
+		return false;
 	Assimp::Importer importer;
 	const aiScene* scene = readCheckedScene(importer, path, 0);
 	for (unsigned m = 0; m < scene->mNumMeshes; ++m)

@@ -234,9 +234,11 @@ SkinnedBody::SkinnedBody(const Rig& rig, const BodyFit& fit, const SkinBinding& 
 	{
 		Bound& b = bound_[j];
 		b.points = points[j];
-		b.mode = binding.ellipsoids[j].mode;
-		b.bones = binding.ellipsoids[j].bones;
-		b.dominant = b.bones.empty() ? 0 : b.bones[0];
+		// Mode and dominant bone from the rig's weights (what checkBinding compares the file's record with), so
+		// that containment never rests on an unchecked record.
+		const EllipsoidBinding own = bindingOf(rig, b.points);
+		b.mode = own.mode;
+		b.dominant = own.bones.empty() ? 0 : own.bones[0];
 		b.bind = fit.ellipsoids[j].ellipsoid;
 		// Bind ellipsoid: contains every bound point (scaled about its centre when a piece was not inside).
 		double zmax = 0.0;

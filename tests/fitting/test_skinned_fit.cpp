@@ -1,6 +1,7 @@
 // Fit once, follow every frame (skinned_fit.h): the union of the bone-bound ellipsoids contains the whole skinned
 // skin surface (bound points and samples of the triangles between them) at many frames of the bent cylinder, of
 // both bundled clips and of a test clip with fast, violent motion of every bone.
+#include "bodyfit/fitting/ellipsoid_io.h"
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/segmentation.h"
 #include "bodyfit/fitting/skinned_fit.h"
@@ -239,4 +240,54 @@ TEST_CASE("bindSkin rejects a fit of another mesh", "[skinned][robust]")
 	BodyFit fit = fitBody(rig.bindMesh);
 	fit.vertexEllipsoid.pop_back();
 	CHECK_THROWS_WITH(bindSkin(rig, fit), Catch::Contains("not made on the rig's bind mesh"));
+}
+
+TEST_CASE("Fit file: the skinning section round-trips, is validated against the rig, and rejects corruption", "[skinned][io]")
+{
+	const Rig rig = loadRig(cylinderPath());
+	BodyFit fit = fitBody(rig.bindMesh);
+	fit.skinning = std::make_shared<const SkinBinding>(bindSkin(rig, fit));
+	const std::string text = toEllipsoidJson(fit);
+	const BodyFit back = parseEllipsoidJson(text, "fit.json");
+	REQUIRE(back.skinning != nullptr);
+	CHECK(back.skinning->vertexEllipsoid == fit.skinning->vertexEllipsoid);
+	CHECK(back.skinning->bones.size() == fit.skinning->bones.size());
+	CHECK_NOTHROW(checkBinding(rig, back, *back.skinning, "fit.json"));
+	// The file alone drives the update: the same ellipsoids as the in-memory binding (rotations are stored as
+	// quaternions, so the bits of the matrices may differ: 1e-12 m is rounding, a wrong binding moves them by cm).
+	SkinnedBody fromFile(rig, back, *back.skinning), inMemory(rig, fit, *fit.skinning);
+	fromFile.pose(rig.clips[0], 0.6);
+	inMemory.pose(rig.clips[0], 0.6);
+	for (std::size_t j = 0; j < fit.ellipsoids.size(); ++j)
+	{
+		CHECK((fromFile.ellipsoids()[j].center - inMemory.ellipsoids()[j].center).norm() < 1e-12);
+		CHECK((fromFile.ellipsoids()[j].radii - inMemory.ellipsoids()[j].radii).norm() < 1e-12);
+	}
+
+	const std::size_t section = text.find("\"skinning\"");
+	REQUIRE(section != std::string::npos);
+	auto corrupt = [&](const std::string& from, const std::string& to) { // first match inside the section
+		std::string t = text;
+		const std::size_t at = t.find(from, section);
+		REQUIRE(at != std::string::npos);
+		t.replace(at, from.size(), to);
+		return t;
+	};
+	CHECK_THROWS_WITH(parseEllipsoidJson(text.substr(0, section + 200), "fit.json"), Catch::Contains("fit.json: not valid JSON"));
+	CHECK_THROWS_WITH(parseEllipsoidJson(corrupt("\"version\": 1,\n    \"mesh\"", "\"version\": 2,\n    \"mesh\""), "fit.json"),
+					  Catch::Contains("fit.json: skinning.version: unsupported version 2"));
+	CHECK_THROWS_WITH(parseEllipsoidJson(corrupt("\"mode\": \"", "\"mode\": \"wobbly"), "fit.json"),
+					  Catch::Contains("skinning.ellipsoids[0].mode: must be \"rigid\" or \"refit\""));
+	CHECK_THROWS_WITH(parseEllipsoidJson(corrupt("\"vertex_ellipsoid\": [", "\"vertex_ellipsoid\": [99999,"), "fit.json"),
+					  Catch::Contains("skinning.vertex_ellipsoid: must be an array of"));
+	CHECK_THROWS_WITH(parseEllipsoidJson(corrupt("\"cover_spacing\": ", "\"cover_spacing\": -"), "fit.json"),
+					  Catch::Contains("skinning.cover_spacing: must be > 0"));
+
+	// A record that does not belong to the rig: another bone name, other clusters.
+	SkinBinding renamed = *back.skinning;
+	renamed.bones[1].name = "elbow";
+	CHECK_THROWS_WITH(checkBinding(rig, back, renamed, "fit.json"), Catch::Contains("fit.json: skinning.bones[1]") && Catch::Contains("'elbow'"));
+	SkinBinding moved = *back.skinning;
+	moved.coverPoints += 1;
+	CHECK_THROWS_WITH(checkBinding(rig, back, moved, "fit.json"), Catch::Contains("skinning.points"));
 }
