@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <set>
 
@@ -24,6 +25,7 @@ namespace
 constexpr double kInside = 1.0 + 1e-9;   // the MVEE's own enclosure tolerance (mvee.h), as the fitter's cover
 constexpr double kMargin = 1.0 + 1e-9;   // relative growth of a moved ellipsoid against rounding
 constexpr int kMaxCoverLevel = 64;       // the fitter's cap on cuts per triangle edge (body_fitter.cpp)
+constexpr double kPerAxisAbove = 1.02 * 1.02; // per-axis growth only for uniform growth > 2% (the rest: uniform)
 
 Eigen::Vector3d positionOf(const BoundPoint& p, const Eigen::MatrixX3d& V)
 {
@@ -221,7 +223,9 @@ SkinBinding bindSkin(const Rig& rig, const BodyFit& fit, double coverSpacing)
 	return b;
 }
 
-SkinnedBody::SkinnedBody(const Rig& rig, const BodyFit& fit, const SkinBinding& binding) : rig_(&rig)
+SkinnedBody::SkinnedBody(const Rig& rig, const BodyFit& fit, const SkinBinding& binding,
+						 const SkinnedBodyOptions& options)
+	: rig_(&rig), options_(options)
 {
 	const std::size_t k = fit.ellipsoids.size();
 	if (int(binding.vertexEllipsoid.size()) != rig.bindMesh.vertexCount() || binding.ellipsoids.size() != k ||
@@ -297,48 +301,115 @@ void SkinnedBody::pose(const AnimationClip& clip, double t)
 void SkinnedBody::update(const std::vector<Eigen::Affine3d>& skinning)
 {
 	skinVertices(*rig_, skinning, skinned_);
+	rows_.resize(std::size_t(skinned_.rows())); // row-major copy: the point pass reads whole vertices
+	for (Eigen::Index v = 0; v < skinned_.rows(); ++v)
+		rows_[std::size_t(v)] = skinned_.row(v).transpose();
 	for (std::size_t j = 0; j < bound_.size(); ++j)
 		updateOne(bound_[j], current_[j], skinning);
 }
 
-void SkinnedBody::updateOne(Bound& b, Ellipsoid& out, const std::vector<Eigen::Affine3d>& skinning) const
+Eigen::Affine3d SkinnedBody::clusterMap(const Bound& b, const std::vector<Eigen::Affine3d>& skinning) const
 {
 	const Eigen::Affine3d& dominant = skinning[std::size_t(b.dominant)];
+	if (!b.affine)
+		return dominant;
+	Eigen::Matrix<double, 3, 4> N = Eigen::Matrix<double, 3, 4>::Zero();
+	for (std::size_t i = 0; i < b.bones.size(); ++i)
+		N.noalias() += skinning[std::size_t(b.bones[i])].affine() * b.moments[i];
+	Eigen::Affine3d fitted;
+	fitted.matrix().topRows<3>() = N * b.inverseMoment;
+	fitted.matrix().row(3) << 0.0, 0.0, 0.0, 1.0;
+	// Keep the least-squares map unless it collapses or inverts the cluster (volume ratio to the dominant bone's
+	// motion outside [0.1, 10]): then the dominant bone's motion is the better start.
+	const double ratio = fitted.linear().determinant() / dominant.linear().determinant();
+	return fitted.matrix().allFinite() && ratio > 0.1 && ratio < 10.0 ? fitted : dominant;
+}
+
+void SkinnedBody::updateOne(Bound& b, Ellipsoid& out, const std::vector<Eigen::Affine3d>& skinning)
+{
 	if (b.mode == EllipsoidMotion::Rigid)
 	{
-		out = transformEllipsoid(b.bind, dominant);
+		out = transformEllipsoid(b.bind, skinning[std::size_t(b.dominant)]);
 		out.radii *= kMargin;
 		b.lastScale = 1.0;
+		b.lastGrowth = 0.0;
 		return;
 	}
-	Eigen::Affine3d map = dominant;
-	if (b.affine)
-	{
-		Eigen::Matrix<double, 3, 4> N = Eigen::Matrix<double, 3, 4>::Zero();
-		for (std::size_t i = 0; i < b.bones.size(); ++i)
-			N.noalias() += skinning[std::size_t(b.bones[i])].affine() * b.moments[i];
-		Eigen::Affine3d fitted;
-		fitted.matrix().topRows<3>() = N * b.inverseMoment;
-		fitted.matrix().row(3) << 0.0, 0.0, 0.0, 1.0;
-		// Keep the least-squares map unless it collapses or inverts the cluster (volume ratio to the dominant bone's
-		// motion outside [0.1, 10]): then the dominant bone's motion is the better start.
-		const double ratio = fitted.linear().determinant() / dominant.linear().determinant();
-		if (fitted.matrix().allFinite() && ratio > 0.1 && ratio < 10.0)
-			map = fitted;
-	}
-	out = transformEllipsoid(b.bind, map);
-	out.radii = out.radii.cwiseMax(1e-9); // a collapsing map: the scale below restores the size
-	// Smallest scale about the centre that encloses every skinned point: zeta is quadratic in the scale.
+	out = transformEllipsoid(b.bind, clusterMap(b, skinning));
+	out.radii = out.radii.cwiseMax(1e-9); // a collapsing map: the scaling below restores the size
+	// The skinned points in the moved ellipsoid's unit frame, squared per axis: a point is inside the ellipsoid with
+	// radii r_k / sqrt(t_k) iff sum_k t_k u_k^2 <= 1.
 	const Eigen::Matrix3d W = out.radii.cwiseInverse().asDiagonal() * out.rotation.transpose();
 	const Eigen::Vector3d c = out.center;
+	squares_.resize(b.points.size());
 	double zmax = 0.0;
-	for (const BoundPoint& p : b.points)
+	for (std::size_t i = 0; i < b.points.size(); ++i)
 	{
-		const Eigen::Vector3d q = positionOf(p, skinned_);
-		zmax = std::max(zmax, (W * (q - c)).squaredNorm());
+		const BoundPoint& p = b.points[i];
+		const Eigen::Vector3d q = p.weight[0] * rows_[std::size_t(p.vertex[0])] +
+								  p.weight[1] * rows_[std::size_t(p.vertex[1])] + p.weight[2] * rows_[std::size_t(p.vertex[2])];
+		squares_[i] = (W * (q - c)).array().square();
+		zmax = std::max(zmax, squares_[i].sum());
 	}
-	b.lastScale = std::sqrt(zmax) * kMargin;
-	out.radii = (out.radii * b.lastScale).cwiseMax(1e-6);
+	const Eigen::Vector3d t = options_.perAxisGrowth ? axisScales(squares_, zmax, extreme_)
+													 : Eigen::Vector3d::Constant(zmax > 0.0 ? 1.0 / zmax : 1.0);
+	const Eigen::Vector3d growth = t.cwiseSqrt().cwiseInverse() * kMargin;
+	b.lastScale = growth.maxCoeff();
+	b.lastGrowth = (out.radii.cwiseProduct(growth) - out.radii).maxCoeff();
+	out.radii = out.radii.cwiseProduct(growth).cwiseMax(1e-6);
+}
+
+Eigen::Vector3d SkinnedBody::axisScales(const std::vector<Eigen::Array3d>& u2, double zmax,
+										std::vector<Eigen::Array3d>& extreme_)
+{
+	// The ellipsoid with radii r_k / sqrt(t_k) contains point i iff t . a_i <= 1 (a_i = u_i^2). Smallest volume =
+	// max sum_k log t_k under those constraints, a 3-variable problem whose dual is a design p on the points with
+	// t_k = 1 / (3 sum_i p_i a_ik) (as for the MVEE, restricted to the ellipsoid's own axes). A few Frank-Wolfe
+	// (Khachiyan) steps on the extreme points (largest a_ik per axis, largest sum) give t; a last pass over every
+	// point rescales t uniformly so that all are inside: exact whatever the iterations reached.
+	const Eigen::Vector3d uniform = Eigen::Vector3d::Constant(zmax > 0.0 ? 1.0 / zmax : 1.0);
+	if (!(zmax > kPerAxisAbove))
+		return uniform;
+	Eigen::Array3d top = Eigen::Array3d::Zero();
+	for (const Eigen::Array3d& a : u2)
+		top = top.max(a);
+	extreme_.clear();
+	for (const Eigen::Array3d& a : u2)
+		if ((a >= 0.8 * top).any() || a.sum() >= 0.8 * zmax)
+			extreme_.push_back(a);
+	std::vector<double> p(extreme_.size(), 1.0 / double(extreme_.size()));
+	Eigen::Array3d M = Eigen::Array3d::Zero();
+	for (std::size_t i = 0; i < extreme_.size(); ++i)
+		M += p[i] * extreme_[i];
+	for (int iteration = 0; iteration < 20; ++iteration)
+	{
+		const Eigen::Array3d inv = M.max(1e-12 * top).inverse();
+		std::size_t best = 0;
+		double g = -1.0;
+		for (std::size_t i = 0; i < extreme_.size(); ++i)
+		{
+			const double gi = (extreme_[i] * inv).sum();
+			if (gi > g)
+			{
+				g = gi;
+				best = i;
+			}
+		}
+		if (g <= 3.0 * (1.0 + 1e-3)) // within 0.1% of the optimum's condition max g = 3
+			break;
+		const double beta = (g - 3.0) / (3.0 * (g - 1.0));
+		for (double& pi : p)
+			pi *= 1.0 - beta;
+		p[best] += beta;
+		M = (1.0 - beta) * M + beta * extreme_[best];
+	}
+	Eigen::Vector3d t = (3.0 * M.max(1e-12 * top)).inverse().matrix();
+	double worst = 0.0;
+	for (const Eigen::Array3d& a : u2)
+		worst = std::max(worst, t[0] * a[0] + t[1] * a[1] + t[2] * a[2]);
+	t /= worst;
+	// Keep whichever of the two encloses less volume (prod t_k^-1/2).
+	return t.prod() > uniform.prod() ? t : uniform;
 }
 
 } // namespace bodyfit

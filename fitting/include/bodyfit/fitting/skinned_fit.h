@@ -99,12 +99,19 @@ struct BoundPoint
 	std::array<double, 3> weight{};
 };
 
+struct SkinnedBodyOptions
+{
+	/// Refit ellipsoids grow per axis (coordinate ascent after the uniform scale, see SkinnedBody::axisScales) instead
+	/// of uniformly: a thin ellipsoid pushed out along its thin axis grows along that axis only. Both are exact.
+	bool perAxisGrowth = true;
+};
+
 /// The body at one frame: skinned vertices and the ellipsoids that contain them.
 class SkinnedBody
 {
 public:
 	/// \throws InvalidInputError when binding and rig / fit disagree in size.
-	SkinnedBody(const Rig& rig, const BodyFit& fit, const SkinBinding& binding);
+	SkinnedBody(const Rig& rig, const BodyFit& fit, const SkinBinding& binding, const SkinnedBodyOptions& options = {});
 
 	/// Poses the rig at time t of `clip` and updates (poseBones + skinningMatrices + update).
 	void pose(const AnimationClip& clip, double t);
@@ -117,8 +124,10 @@ public:
 	/// Bound points of ellipsoid j (its cluster's vertices first, then piece corners).
 	const std::vector<BoundPoint>& points(int j) const { return bound_[std::size_t(j)].points; }
 	EllipsoidMotion mode(int j) const { return bound_[std::size_t(j)].mode; }
-	/// Scale of the last update's enclosing step for ellipsoid j (1 for rigid ones).
+	/// Largest per-axis growth factor of the last update's enclosing step for ellipsoid j (1 for rigid ones), and the
+	/// largest growth of a semi-axis in metres (how far the surface was pushed out beyond the moved ellipsoid).
 	double lastScale(int j) const { return bound_[std::size_t(j)].lastScale; }
+	double lastGrowth(int j) const { return bound_[std::size_t(j)].lastGrowth; }
 
 private:
 	struct Bound
@@ -132,13 +141,20 @@ private:
 		Eigen::Matrix4d inverseMoment;               ///< (sum p~ p~^T)^-1 of the bind points
 		bool affine = false;                         ///< the least-squares map is well posed
 		double lastScale = 1.0;
+		double lastGrowth = 0.0;
 	};
-	void updateOne(Bound& b, Ellipsoid& out, const std::vector<Eigen::Affine3d>& skinning) const;
+	void updateOne(Bound& b, Ellipsoid& out, const std::vector<Eigen::Affine3d>& skinning);
+	Eigen::Affine3d clusterMap(const Bound& b, const std::vector<Eigen::Affine3d>& skinning) const;
+	static Eigen::Vector3d axisScales(const std::vector<Eigen::Array3d>& squares, double zmax,
+									  std::vector<Eigen::Array3d>& scratch);
 
 	const Rig* rig_;
+	SkinnedBodyOptions options_;
 	std::vector<Bound> bound_;
 	std::vector<Ellipsoid> current_;
 	Eigen::MatrixX3d skinned_;
+	std::vector<Eigen::Vector3d> rows_;             ///< skinned_ row by row
+	std::vector<Eigen::Array3d> squares_, extreme_; ///< scratch of updateOne
 };
 
 /// Image of an ellipsoid under an affine map with non-singular linear part (an ellipsoid; SVD of A R diag(r)).
