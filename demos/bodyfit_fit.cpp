@@ -34,6 +34,8 @@ that let the ellipsoids follow every clip of the rig.
                          also write the mesh coloured by body region, with a small marker at every
                          feature point (black: head top, hands, feet; white: neck, elbows, knees;
                          magenta: perineum, armpits)
+  --skinned-mesh NAME    rigged file: the skinned mesh (or its node) to fit (default: the skinned mesh
+                         with the most vertices)
   --no-segmentation      fit the whole mesh as one region (generic path)
   --no-triangle-cover    skip the triangle cover: the union then encloses every vertex but not all of
                          the skin between two ellipsoids (slivers stick out, cloth can rest inside the body)
@@ -133,6 +135,7 @@ int main(int argc, char** argv)
 									  {"--scale", true, "S"},
 									  {"--export-mesh", true, "OUT.obj|OUT.ply"},
 									  {"--segments", true, "OUT.ply|OUT.obj"},
+									  {"--skinned-mesh", true, "NAME"},
 									  {"--no-segmentation", false, ""},
 									  {"--no-triangle-cover", false, ""}});
 		if (args.helpRequested())
@@ -175,8 +178,8 @@ int main(int argc, char** argv)
 		const Clock::time_point t0 = Clock::now();
 		// A rigged file (a skinned mesh): fit its bind pose and record the bone bindings (skinned_fit.h).
 		std::optional<bodyfit::Rig> rig;
-		if (bodyfit::hasSkinnedMesh(meshPath))
-			rig = bodyfit::loadRig(meshPath, {load, "", /*requireAnimation=*/false});
+		if (args.has("--skinned-mesh") || bodyfit::hasSkinnedMesh(meshPath))
+			rig = bodyfit::loadRig(meshPath, {load, args.value("--skinned-mesh"), /*requireAnimation=*/false});
 		const bodyfit::LoadedMesh loaded =
 			rig ? bodyfit::LoadedMesh{rig->bindMesh, rig->bindMesh, rig->report} : bodyfit::loadTriMesh(meshPath, load);
 		const double loadMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();

@@ -1,6 +1,7 @@
 // bodyfit-fit command line: exit codes (0 ok, 2 bad input) and one-line errors, run on the built executable.
 
 #include "bodyfit/fitting/ellipsoid_io.h"
+#include "bodyfit/fitting/skinned_fit.h"
 #include "support/paths.h"
 
 #include <catch2/catch.hpp>
@@ -10,6 +11,7 @@
 
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -149,3 +151,30 @@ TEST_CASE("cli: a fit writes readable JSON and the ellipsoid mesh, creating the 
 	CHECK(abs.params.muTorso == 0.03);
 }
 
+
+TEST_CASE("cli: a rigged GLB is fitted in its bind pose and the fit records the bone bindings", "[fitting][cli][rig]")
+{
+	const std::string glb = bodyfit_test::assetPath("animated/male_young.animated.glb");
+	const std::string json = (scratch() / "rig" / "fit.json").string();
+	const Run r = run(quoted(glb) + " -o " + quoted(json));
+	INFO(r.err);
+	REQUIRE(r.status == 0);
+	CHECK(r.out.find("skinning  rig with") != std::string::npos);
+	const bodyfit::BodyFit fit = bodyfit::readEllipsoidJson(json);
+	REQUIRE(fit.skinning != nullptr);
+	CHECK(fit.skinning->vertices == 13380);
+	CHECK(fit.skinning->ellipsoids.size() == fit.ellipsoids.size());
+	CHECK(int(fit.skinning->vertexEllipsoid.size()) == 13380);
+
+	// A static mesh gets no section; --skinned-mesh on it, or an unknown name, is bad input (exit 2, one line).
+	const std::string obj = bodyfit_test::assetPath("male_young.4508v.obj");
+	REQUIRE(run(quoted(obj) + " -o " + quoted(json)).status == 0);
+	CHECK(bodyfit::readEllipsoidJson(json).skinning == nullptr);
+	const Run noSkin = run(quoted(obj) + " -o " + quoted(json) + " --skinned-mesh body");
+	CHECK(noSkin.status == 2);
+	CHECK_THAT(noSkin.err, Catch::Contains("no skinned mesh"));
+	const Run unknown = run(quoted(glb) + " -o " + quoted(json) + " --skinned-mesh cloth");
+	CHECK(unknown.status == 2);
+	CHECK_THAT(unknown.err, Catch::Contains("no skinned mesh named 'cloth'"));
+	CHECK(std::count(unknown.err.begin(), unknown.err.end(), '\n') == 1);
+}

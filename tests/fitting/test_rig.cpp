@@ -196,6 +196,23 @@ TEST_CASE("loadRig takes more than 4 influences per vertex (JOINTS_1 / WEIGHTS_1
 	CHECK((skinned - loaded.bindMesh.V).cwiseAbs().maxCoeff() < 1e-5); // bind pose reproduces the mesh (floats)
 }
 
+TEST_CASE("loadRig with several skinned meshes takes the largest, or the one named", "[rig]")
+{
+	GltfRig rig = bentCylinder();
+	rig.hat = true;
+	const std::string path = bodyfit_test::writeGltfRig(rig, "cylinder_and_hat");
+	const Rig body = loadRig(path);
+	CHECK(body.meshName == "body");
+	CHECK(body.bindMesh.vertexCount() == 9 * 12 + 2);
+	RigLoadOptions options;
+	options.meshName = "hat";
+	const Rig hat = loadRig(path, options);
+	CHECK(hat.meshName == "hat");
+	CHECK(hat.bindMesh.vertexCount() == 4);
+	options.meshName = "cloth";
+	CHECK_THROWS_WITH(loadRig(path, options), Catch::Contains("no skinned mesh named 'cloth'") && Catch::Contains("'hat'"));
+}
+
 TEST_CASE("Bad rigged input: one-line errors naming what is wrong", "[rig][robust]")
 {
 	const float nan = std::numeric_limits<float>::quiet_NaN();

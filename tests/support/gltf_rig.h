@@ -48,6 +48,7 @@ struct GltfRig
 	std::vector<GltfJoint> joints;
 	std::vector<Eigen::Matrix4f> inverseBind; ///< one per joint
 	std::vector<GltfClip> clips;
+	bool hat = false; ///< also a second skinned mesh "hat" (a tetrahedron on joint 0, fewer vertices than the body)
 };
 
 /// Writes `rig` as DIR/NAME.gltf (+ NAME.bin) and returns the .gltf path.
@@ -97,7 +98,20 @@ inline std::string writeGltfRig(const GltfRig& rig, const std::string& name)
 	Json doc;
 	doc["asset"] = {{"version", "2.0"}};
 	doc["meshes"] = Json::array({{{"name", "body"}, {"primitives", Json::array({{{"attributes", attributes}, {"indices", indices}, {"mode", 4}}})}}});
-	// Nodes: 0 = the mesh, 1.. = the joints.
+	if (rig.hat)
+	{
+		const std::vector<float> p = {0, 2.1f, 0, 0.1f, 2.1f, 0, 0, 2.2f, 0, 0, 2.1f, 0.1f};
+		const std::vector<std::uint16_t> j(16, 0);
+		const std::vector<float> w = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+		const std::vector<std::uint32_t> f = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+		Json a;
+		a["POSITION"] = add(p.data(), p.size() * 4, kFloat, "VEC3", 4, {{"min", {0, 2.1, 0}}, {"max", {0.1, 2.2, 0.1}}});
+		a["JOINTS_0"] = add(j.data(), j.size() * 2, kUShort, "VEC4", 4);
+		a["WEIGHTS_0"] = add(w.data(), w.size() * 4, kFloat, "VEC4", 4);
+		const int hatIndices = add(f.data(), f.size() * 4, kUInt, "SCALAR", f.size());
+		doc["meshes"].push_back({{"name", "hat"}, {"primitives", Json::array({{{"attributes", a}, {"indices", hatIndices}, {"mode", 4}}})}});
+	}
+	// Nodes: 0 = the mesh, 1.. = the joints, then the hat.
 	Json nodes = Json::array();
 	Json meshNode = {{"name", "body"}, {"mesh", 0}};
 	if (rig.skinned)
@@ -119,6 +133,11 @@ inline std::string writeGltfRig(const GltfRig& rig, const std::string& name)
 	for (std::size_t j = 0; j < rig.joints.size(); ++j)
 		if (!children[j].empty())
 			nodes[j + 1]["children"] = children[j];
+	if (rig.hat)
+	{
+		nodes.push_back({{"name", "hat"}, {"mesh", 1}, {"skin", 0}});
+		roots.push_back(int(nodes.size()) - 1);
+	}
 	doc["nodes"] = nodes;
 	doc["scenes"] = Json::array({{{"nodes", roots}}});
 	doc["scene"] = 0;
