@@ -139,8 +139,10 @@ std::shared_ptr<const SkinBinding> parseSkinBinding(const std::string& text, con
 	for (std::size_t i = 0; i < bones.size(); ++i)
 		b->bones.push_back(readBone(r, bones[i], int(i)));
 	b->coverSpacing = r.number(r.get(s, "cover_spacing", ""), "cover_spacing");
-	if (!(b->coverSpacing > 0.0))
-		r.fail("cover_spacing", "must be > 0");
+	// 0.1 mm: far below any useful piece size (the fitter's default is 0.3% of the height, ~5 mm), and it keeps a
+	// hostile file from asking for the 64 x 64 pieces per triangle of the cap on every triangle for nothing.
+	if (!(b->coverSpacing >= kMinCoverSpacing))
+		r.fail("cover_spacing", "must be >= " + std::to_string(kMinCoverSpacing) + " m (got " + std::to_string(b->coverSpacing) + ")");
 	const Json& points = r.get(s, "points", "");
 	b->vertexPoints = r.integer(r.get(points, "vertices", "points"), "points.vertices", 0, 1 << 30);
 	b->coverPoints = r.integer(r.get(points, "cover", "points"), "points.cover", 0, 1 << 30);
@@ -156,6 +158,9 @@ std::shared_ptr<const SkinBinding> parseSkinBinding(const std::string& text, con
 void checkBinding(const Rig& rig, const BodyFit& fit, const SkinBinding& recorded, const std::string& name)
 {
 	const SectionReader r{name};
+	if (recorded.ellipsoids.size() != fit.ellipsoids.size())
+		r.fail("ellipsoids", "has " + std::to_string(recorded.ellipsoids.size()) + " entries for " +
+								 std::to_string(fit.ellipsoids.size()) + " ellipsoids");
 	if (recorded.vertices != rig.bindMesh.vertexCount() || recorded.faces != rig.bindMesh.faceCount())
 		r.fail("mesh", "the fit was made on a mesh of " + std::to_string(recorded.vertices) + " vertices, " +
 						   std::to_string(recorded.faces) + " faces; the rig's has " +

@@ -150,15 +150,16 @@ EllipsoidBinding bindingOf(const Rig& rig, const std::vector<BoundPoint>& points
 	return b;
 }
 
+/// Piece size of the binding in metres, never below kMinCoverSpacing (what a fit file may hold).
 double spacingOf(const Rig& rig, const BodyFit& fit, double requested)
 {
 	if (requested > 0.0)
-		return requested;
+		return std::max(requested, kMinCoverSpacing);
 	const TriMesh& m = rig.bindMesh;
 	const double height = fit.source.height > 0.0 ? fit.source.height : m.V.col(1).maxCoeff() - m.V.col(1).minCoeff();
 	if (fit.params.coverTriangles && fit.params.coverSpacing > 0.0)
-		return fit.params.coverSpacing * (fit.params.relativeToHeight ? height : 1.0);
-	return 0.003 * height; // the fitter's default piece size (body_fitter.h)
+		return std::max(fit.params.coverSpacing * (fit.params.relativeToHeight ? height : 1.0), kMinCoverSpacing);
+	return std::max(0.003 * height, kMinCoverSpacing); // the fitter's default piece size (body_fitter.h)
 }
 
 std::vector<Ellipsoid> ellipsoidsOf(const BodyFit& fit)
@@ -231,6 +232,8 @@ SkinnedBody::SkinnedBody(const Rig& rig, const BodyFit& fit, const SkinBinding& 
 	if (int(binding.vertexEllipsoid.size()) != rig.bindMesh.vertexCount() || binding.ellipsoids.size() != k ||
 		int(binding.bones.size()) != rig.boneCount())
 		throw InvalidInputError(rig.path + ": the skin binding does not belong to this rig and fit (sizes differ)");
+	if (!(binding.coverSpacing >= kMinCoverSpacing))
+		throw InvalidInputError(rig.path + ": the skin binding's cover spacing is below 0.1 mm");
 	const auto points = bindPoints(rig.bindMesh, ellipsoidsOf(fit), binding.vertexEllipsoid, binding.coverSpacing);
 	bound_.resize(k);
 	current_.resize(k);

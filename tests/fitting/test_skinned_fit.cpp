@@ -281,7 +281,7 @@ TEST_CASE("Fit file: the skinning section round-trips, is validated against the 
 	CHECK_THROWS_WITH(parseEllipsoidJson(corrupt("\"vertex_ellipsoid\": [", "\"vertex_ellipsoid\": [99999,"), "fit.json"),
 					  Catch::Contains("skinning.vertex_ellipsoid: must be an array of"));
 	CHECK_THROWS_WITH(parseEllipsoidJson(corrupt("\"cover_spacing\": ", "\"cover_spacing\": -"), "fit.json"),
-					  Catch::Contains("skinning.cover_spacing: must be > 0"));
+					  Catch::Contains("skinning.cover_spacing: must be >= 0.0001"));
 
 	// A record that does not belong to the rig: another bone name, other clusters.
 	SkinBinding renamed = *back.skinning;

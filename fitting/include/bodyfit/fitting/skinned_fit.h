@@ -74,8 +74,10 @@ struct SkinBinding
 	int coverPoints = 0;              ///< sum over ellipsoids of bound piece corners that are not vertices
 };
 
-/// Current skin version of the "skinning" section.
+/// Current version of the "skinning" section.
 constexpr int kSkinBindingVersion = 1;
+/// Smallest cover spacing a file may ask for (metres).
+constexpr double kMinCoverSpacing = 1e-4;
 
 /// Binds `fit` (made on rig.bindMesh, with fit.vertexEllipsoid) to the rig. `coverSpacing` in metres; <= 0 takes the
 /// fit's own (params.coverSpacing, relative to the height when the thresholds are), or 0.003 H when it had no cover.
