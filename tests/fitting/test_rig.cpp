@@ -196,6 +196,21 @@ TEST_CASE("loadRig takes more than 4 influences per vertex (JOINTS_1 / WEIGHTS_1
 	CHECK((skinned - loaded.bindMesh.V).cwiseAbs().maxCoeff() < 1e-5); // bind pose reproduces the mesh (floats)
 }
 
+TEST_CASE("loadRig welds a seam vertex: the merged vertex keeps the weights of the first copy", "[rig]")
+{
+	GltfRig rig = bentCylinder();
+	// A copy of vertex 0 (bottom ring, lower bone only) used by the first face, weighted to the upper bone.
+	rig.positions.push_back(rig.positions[0]);
+	rig.joints0.push_back({0, 1, 0, 0});
+	rig.weights0.push_back({0.0f, 1.0f, 0.0f, 0.0f});
+	rig.indices[0] = std::uint32_t(rig.positions.size() - 1);
+	const Rig loaded = loadRig(bodyfit_test::writeGltfRig(rig, "seam"));
+	CHECK(loaded.report.weldedVertices == 1);
+	REQUIRE(loaded.bindMesh.vertexCount() == 9 * 12 + 2);
+	REQUIRE(loaded.influenceCount(0) == 1);
+	CHECK(loaded.bones[std::size_t(loaded.weightBone[0])].name == "lower");
+}
+
 TEST_CASE("loadRig with several skinned meshes takes the largest, or the one named", "[rig]")
 {
 	GltfRig rig = bentCylinder();
