@@ -112,6 +112,7 @@ struct SkinnedBodyOptions
 class SkinnedBody
 {
 public:
+	/// Keeps a reference to `rig` (it must outlive the body); copies what it needs of `fit` and `binding`.
 	/// \throws InvalidInputError when binding and rig / fit disagree in size.
 	SkinnedBody(const Rig& rig, const BodyFit& fit, const SkinBinding& binding, const SkinnedBodyOptions& options = {});
 
