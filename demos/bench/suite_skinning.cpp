@@ -2,7 +2,9 @@
 // Per bundled animated body and clip, over every 30 fps frame: median and worst ms per frame of the whole update
 // (poseBones + skinningMatrices + skinVertices + ellipsoid update), the median of its skinning part alone
 // (poseBones + skinningMatrices + skinVertices), and how far the enclosing step pushes the refitted ellipsoids out
-// beyond their moved bind shape (largest semi-axis growth, mm: mean and max over ellipsoids and frames), with the
+// beyond their moved bind shape (largest semi-axis growth, mm: mean and max over ellipsoids and frames), the mean
+// radial distance of the skinned vertices to their own ellipsoid (paper E over the body, mean over frames; the fit
+// table has the bind-pose value), with the
 // default per-axis growth and with uniform growth. The update is also timed in thread CPU time (steadier than wall
 // time on a loaded machine). Then the bind-pose fit (segmentation + fitBody, as bodyfit-fit) and the binding time.
 // Single thread.
@@ -42,9 +44,27 @@ struct ClipTiming
 {
 	int frames = 0;
 	double updateMedian = 0.0, updateWorst = 0.0, updateCpu = 0.0, skinMedian = 0.0, meanGrowth = 0.0, maxGrowth = 0.0;
+	double radialError = 0.0; ///< mean over frames of the mean radial distance of the skinned vertices to their ellipsoid
 };
 
-ClipTiming timeClip(bodyfit::SkinnedBody& body, const bodyfit::AnimationClip& clip, int repeats)
+/// Mean over the clustered vertices of |v - radial projection of v onto its own ellipsoid| (the paper's E, over the
+/// whole body): how loosely the moved ellipsoids fit the skin at this frame.
+double meanRadialError(const bodyfit::SkinnedBody& body, const std::vector<int>& cluster)
+{
+	double sum = 0.0;
+	int n = 0;
+	for (int v = 0; v < int(cluster.size()); ++v)
+		if (cluster[std::size_t(v)] >= 0)
+		{
+			const Eigen::Vector3d p = body.vertices().row(v).transpose();
+			sum += (p - body.ellipsoids()[std::size_t(cluster[std::size_t(v)])].radialProjection(p)).norm();
+			++n;
+		}
+	return n > 0 ? sum / n : 0.0;
+};
+
+ClipTiming timeClip(bodyfit::SkinnedBody& body, const bodyfit::AnimationClip& clip, const std::vector<int>& cluster,
+					int repeats)
 {
 	const bodyfit::Rig& rig = body.rig();
 	ClipTiming out;
@@ -65,6 +85,8 @@ ClipTiming timeClip(bodyfit::SkinnedBody& body, const bodyfit::AnimationClip& cl
 			t0 = Clock::now();
 			bodyfit::skinVertices(rig, bodyfit::skinningMatrices(rig, bodyfit::poseBones(rig, clip, t)), skinned);
 			skin.push_back(msSince(t0));
+			if (r == 0)
+				out.radialError += meanRadialError(body, cluster) / out.frames;
 			if (r == 0)
 				for (int j = 0; j < int(body.ellipsoids().size()); ++j)
 					if (body.mode(j) == bodyfit::EllipsoidMotion::Refit)
@@ -87,8 +109,10 @@ ClipTiming timeClip(bodyfit::SkinnedBody& body, const bodyfit::AnimationClip& cl
 BODYFIT_BENCH_SUITE(skinning, "rigged body: per-frame update (pose, skin, ellipsoids) and the bind-pose fit")
 {
 	bodyfit_bench::Table frames({"body", "clip", "growth", "frames", "update ms median", "update ms worst",
-								 "update cpu ms median", "skinning ms median", "growth mm mean", "growth mm max"});
-	bodyfit_bench::Table fits({"body", "vertices", "ellipsoids", "rigid", "bound points", "fit ms median", "bind ms"});
+								 "update cpu ms median", "skinning ms median", "growth mm mean", "growth mm max",
+								 "radial error mm"});
+	bodyfit_bench::Table fits({"body", "vertices", "ellipsoids", "rigid", "bound points", "fit ms median", "bind ms",
+							   "radial error mm (bind)"});
 	const int repeats = ctx.repeatsGiven ? ctx.repeats : (ctx.quick ? 1 : 5);
 	for (const char* name : {"female_young", "male_young"})
 	{
@@ -107,17 +131,19 @@ BODYFIT_BENCH_SUITE(skinning, "rigged body: per-frame update (pose, skin, ellips
 			rigid += e.mode == bodyfit::EllipsoidMotion::Rigid;
 		fits.addRow({name, bodyfit_bench::fmtInt(rig.bindMesh.vertexCount()), bodyfit_bench::fmtInt(long(fit.ellipsoids.size())),
 					 bodyfit_bench::fmtInt(rigid), bodyfit_bench::fmtInt(binding.vertexPoints + binding.coverPoints),
-					 bodyfit_bench::fmt(fitMs, 1), bodyfit_bench::fmt(bindMs, 1)});
+					 bodyfit_bench::fmt(fitMs, 1), bodyfit_bench::fmt(bindMs, 1),
+					 bodyfit_bench::fmt(fit.meanRadialError() * 1000.0, 2)});
 		for (const bool perAxis : {true, false})
 		{
 			bodyfit::SkinnedBody body(rig, fit, binding, {perAxis});
 			for (const bodyfit::AnimationClip& clip : rig.clips)
 			{
-				const ClipTiming c = timeClip(body, clip, repeats);
+				const ClipTiming c = timeClip(body, clip, binding.vertexEllipsoid, repeats);
 				frames.addRow({name, clip.name, perAxis ? "per-axis" : "uniform", bodyfit_bench::fmtInt(c.frames),
 							   bodyfit_bench::fmt(c.updateMedian, 3), bodyfit_bench::fmt(c.updateWorst, 3),
 							   bodyfit_bench::fmt(c.updateCpu, 3), bodyfit_bench::fmt(c.skinMedian, 3),
-							   bodyfit_bench::fmt(c.meanGrowth * 1000.0, 2), bodyfit_bench::fmt(c.maxGrowth * 1000.0, 1)});
+							   bodyfit_bench::fmt(c.meanGrowth * 1000.0, 2), bodyfit_bench::fmt(c.maxGrowth * 1000.0, 1),
+							   bodyfit_bench::fmt(c.radialError * 1000.0, 2)});
 			}
 		}
 	}
