@@ -3,6 +3,7 @@
 
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/skinned_fit.h"
 
 #include <nlohmann/json.hpp>
 
@@ -226,6 +227,8 @@ std::string toEllipsoidJson(const BodyFit& fit)
 						 {"splits_accepted", fit.splitsAccepted},
 						 {"splits_rejected", fit.splitsRejected}};
 	doc["warnings"] = fit.warnings;
+	if (fit.skinning)
+		doc["skinning"] = Json::parse(skinBindingJson(*fit.skinning));
 	return doc.dump(2) + "\n";
 }
 
@@ -339,6 +342,8 @@ BodyFit parseEllipsoidJson(const std::string& text, const std::string& name)
 		for (std::size_t i = 0; i < w.size(); ++i)
 			fit.warnings.push_back(r.string(w[i], "warnings[" + std::to_string(i) + "]"));
 	}
+	if (doc.contains("skinning"))
+		fit.skinning = parseSkinBinding(doc["skinning"].dump(), name, int(fit.ellipsoids.size()));
 	return fit;
 }
 

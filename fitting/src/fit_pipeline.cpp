@@ -163,3 +163,20 @@ FitPipelineResult fitMesh(const TriMesh& mesh, const FitPipelineOptions& options
 }
 
 } // namespace bodyfit
+
+namespace bodyfit
+{
+
+FitPipelineResult fitLoadedMesh(LoadedMesh loaded, const FitPipelineOptions& options, const std::string& name,
+								double loadMs)
+{
+	requireLengthsNotInFit(options.fit);
+	const Clock::time_point t0 = Clock::now();
+	FitPipelineResult result = fitLoaded(std::move(loaded), options, name, loadMs);
+	finish(result, t0);
+	result.timings.total += loadMs;
+	result.fit.setTiming("total", result.timings.total);
+	return result;
+}
+
+} // namespace bodyfit

@@ -382,7 +382,7 @@ LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const st
 	return out;
 }
 
-LoadedMesh loadTriMesh(const std::string& path, const LoadOptions& options)
+const aiScene* readCheckedScene(Assimp::Importer& importer, const std::string& path, unsigned int postProcessing)
 {
 	{
 		std::ifstream probe(path, std::ios::binary);
@@ -393,8 +393,7 @@ LoadedMesh loadTriMesh(const std::string& path, const LoadOptions& options)
 			throw MeshLoadError(path + ": file is empty");
 	}
 	requireWellFormedPlyHeader(path);
-	Assimp::Importer importer;
-	// Points and lines are removed; we only want triangles. Node transforms are baked (glTF, FBX).
+	// Points and lines are removed; we only want triangles.
 	importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
 	// Two phases, so that corrupt data never reaches assimp's post-processing steps (which crash or abort on it):
 	// 1. read + ValidateDataStructure (rejects out-of-range indices: a truncated binary PLY, tests/data/
@@ -423,9 +422,18 @@ LoadedMesh loadTriMesh(const std::string& path, const LoadOptions& options)
 			throw MeshLoadError(path + ": corrupt or truncated face data (mesh " + std::to_string(m) +
 								" declares polygons it does not have)");
 	}
-	scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_PreTransformVertices | aiProcess_SortByPType);
+	scene = importer.ApplyPostProcessing(postProcessing);
 	if (scene == nullptr)
 		throw readFailed();
+	return scene;
+}
+
+LoadedMesh loadTriMesh(const std::string& path, const LoadOptions& options)
+{
+	Assimp::Importer importer;
+	const aiScene* scene =
+		readCheckedScene(importer, path, aiProcess_Triangulate | aiProcess_PreTransformVertices | aiProcess_SortByPType);
+	// (PreTransformVertices bakes the node transforms: glTF, FBX.)
 	if ((scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0 || scene->mNumMeshes == 0)
 		throw MeshLoadError(path + ": file contains no triangle mesh");
 

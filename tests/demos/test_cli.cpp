@@ -2,6 +2,7 @@
 
 #include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/ellipsoid_io.h"
+#include "bodyfit/fitting/skinned_fit.h"
 #include "support/paths.h"
 
 #include <catch2/catch.hpp>
@@ -12,6 +13,7 @@
 #include <sys/wait.h>
 
 #include <cstdio>
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -199,4 +201,31 @@ TEST_CASE("cli: --absolute with the relative thresholds times H gives the same f
 	CHECK(absFit.params.coverSpacing == defaults.coverSpacing * h);
 	CHECK(relFit.params.relativeToHeight);
 	CHECK(relFit.params.coverSpacing == defaults.coverSpacing);
+}
+
+TEST_CASE("cli: a rigged GLB is fitted in its bind pose and the fit records the bone bindings", "[fitting][cli][rig]")
+{
+	const std::string glb = bodyfit_test::assetPath("animated/male_young.animated.glb");
+	const std::string json = (scratch() / "rig" / "fit.json").string();
+	const Run r = run(quoted(glb) + " -o " + quoted(json));
+	INFO(r.err);
+	REQUIRE(r.status == 0);
+	CHECK(r.out.find("skinning  rig with") != std::string::npos);
+	const bodyfit::BodyFit fit = bodyfit::readEllipsoidJson(json);
+	REQUIRE(fit.skinning != nullptr);
+	CHECK(fit.skinning->vertices == 13380);
+	CHECK(fit.skinning->ellipsoids.size() == fit.ellipsoids.size());
+	CHECK(int(fit.skinning->vertexEllipsoid.size()) == 13380);
+
+	// A static mesh gets no section; --skinned-mesh on it, or an unknown name, is bad input (exit 2, one line).
+	const std::string obj = bodyfit_test::assetPath("male_young.4508v.obj");
+	REQUIRE(run(quoted(obj) + " -o " + quoted(json)).status == 0);
+	CHECK(bodyfit::readEllipsoidJson(json).skinning == nullptr);
+	const Run noSkin = run(quoted(obj) + " -o " + quoted(json) + " --skinned-mesh body");
+	CHECK(noSkin.status == 2);
+	CHECK_THAT(noSkin.err, Catch::Contains("no skinned mesh"));
+	const Run unknown = run(quoted(glb) + " -o " + quoted(json) + " --skinned-mesh cloth");
+	CHECK(unknown.status == 2);
+	CHECK_THAT(unknown.err, Catch::Contains("no skinned mesh named 'cloth'"));
+	CHECK(std::count(unknown.err.begin(), unknown.err.end(), '\n') == 1);
 }

@@ -21,7 +21,9 @@
 #include "bodyfit/fitting/kmeans.h"
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/mvee.h"
+#include "bodyfit/fitting/rig.h"
 #include "bodyfit/fitting/segmentation.h"
+#include "bodyfit/fitting/skinned_fit.h"
 #include "bodyfit/fitting/types.h"
 
 #include "BulletSoftBody/btSoftBodyHelpers.h"

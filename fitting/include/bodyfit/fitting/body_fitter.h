@@ -36,11 +36,14 @@
 #include "bodyfit/fitting/mvee.h"
 #include "bodyfit/fitting/segmentation.h"
 
+#include <memory>
 #include <string>
 #include <vector>
 
 namespace bodyfit
 {
+
+struct SkinBinding; // skinned_fit.h
 
 struct BodyFitOptions
 {
@@ -187,6 +190,8 @@ struct BodyFit
 	/// enclose in addition to their own vertices (summed over ellipsoids).
 	int coverRounds = 0;
 	int coverExtraPoints = 0;
+	/// Bone bindings of a fit made on a rig's bind pose (skinned_fit.h; the fit file's "skinning" section), or null.
+	std::shared_ptr<const SkinBinding> skinning;
 
 	/// Vertex-weighted mean of E_j (= mean radial error over all fitted vertices), max E_j, and the
 	/// vertex-weighted mean / max of the true distance. Ellipsoids with vertexCount 0 contribute nothing.

@@ -9,7 +9,8 @@
 /// ellipsoids [{region, center [x,y,z], rotation [w,x,y,z] (unit quaternion, w >= 0), axes [a,b,c] (semi-axes,
 /// metres, along the rotation's x, y, z columns), radial_error, max_radial_error, mean_distance, max_distance,
 /// vertices}], timing_ms {stage: ms, ...}, stats {count, mean_radial_error, max_radial_error, mean_distance,
-/// max_distance}, refinement {status, splits_accepted, splits_rejected}, warnings [..].
+/// max_distance}, refinement {status, splits_accepted, splits_rejected}, warnings [..], and for a fit made on a rig's
+/// bind pose the optional skinning section of skinned_fit.h (its own version; a file without it is a static fit).
 /// Doubles are written with the shortest representation that parses back to the same double (bit-exact).
 ///
 /// Read: format, version and ellipsoids are required; each ellipsoid needs region, center, rotation and axes. The

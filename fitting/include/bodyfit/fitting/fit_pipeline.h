@@ -77,6 +77,12 @@ FitPipelineResult fitMeshFile(const std::string& path, const FitPipelineOptions&
 FitPipelineResult fitMesh(const TriMesh& mesh, const FitPipelineOptions& options = {},
 						  const std::string& name = "<memory>");
 
+/// The same from a mesh a loader has already read and repaired (e.g. the bind pose of a rig from loadRig, whose
+/// vertex order the skin bindings rely on: it is not repaired again). `loadMs` is what reading it took.
+/// \throws InvalidInputError as fitBody.
+FitPipelineResult fitLoadedMesh(LoadedMesh loaded, const FitPipelineOptions& options, const std::string& name,
+								double loadMs = 0.0);
+
 /// The segmentation step: segmentBody with options.segmentation, or Region::Whole labels when options.segment is
 /// off. Never throws for a usable mesh (a failed segmentation has ok = false and its reason).
 Segmentation segmentForFit(const TriMesh& mesh, const FitPipelineOptions& options);

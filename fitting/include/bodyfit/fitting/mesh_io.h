@@ -8,6 +8,12 @@
 #include <string>
 #include <vector>
 
+struct aiScene;
+namespace Assimp
+{
+class Importer;
+}
+
 namespace bodyfit
 {
 
@@ -53,6 +59,11 @@ struct LoadedMesh
 /// \throws MeshLoadError if the file is missing, unreadable, empty, truncated or not a mesh format assimp reads.
 /// \throws InvalidInputError if coordinates are non-finite or fewer than 4 distinct points remain.
 LoadedMesh loadTriMesh(const std::string& path, const LoadOptions& options = {});
+
+/// The file checks of loadTriMesh (missing or empty file, malformed PLY header, assimp's validation, polygon data
+/// that post-processing would abort on), then `postProcessing` (aiPostProcessSteps flags). For other assimp-based
+/// readers of the library (rig_io.cpp); the scene belongs to `importer`. \throws MeshLoadError as loadTriMesh.
+const aiScene* readCheckedScene(Assimp::Importer& importer, const std::string& path, unsigned int postProcessing);
 
 /// Repairs an in-memory mesh exactly as loadTriMesh does (weld, degenerate faces, unreferenced vertices).
 /// \throws InvalidInputError as loadTriMesh.

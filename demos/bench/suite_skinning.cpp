@@ -1,0 +1,152 @@
+// Suite `skinning`: the per-frame body update of a rigged body (skinned_fit.h) and the bind-pose fit.
+// Per bundled animated body and clip, over every 30 fps frame: median and worst ms per frame of the whole update
+// (poseBones + skinningMatrices + skinVertices + ellipsoid update), the median of its skinning part alone
+// (poseBones + skinningMatrices + skinVertices), and how far the enclosing step pushes the refitted ellipsoids out
+// beyond their moved bind shape (largest semi-axis growth, mm: mean and max over ellipsoids and frames), the mean
+// radial distance of the skinned vertices to their own ellipsoid (paper E over the body, mean over frames; the fit
+// table has the bind-pose value), with the
+// default per-axis growth and with uniform growth. The update is also timed in thread CPU time (steadier than wall
+// time on a loaded machine). Then the bind-pose fit (segmentation + fitBody, as bodyfit-fit) and the binding time.
+// Single thread.
+#include "bench/bench_common.h"
+
+#include "bodyfit/fitting/segmentation.h"
+#include "bodyfit/fitting/skinned_fit.h"
+
+#include <chrono>
+#include <ctime>
+
+namespace
+{
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t0)
+{
+	return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+double threadCpuMs()
+{
+	timespec ts{};
+	clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+	return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+}
+
+double median(std::vector<double> v)
+{
+	std::sort(v.begin(), v.end());
+	const std::size_t m = v.size() / 2;
+	return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+}
+
+struct ClipTiming
+{
+	int frames = 0;
+	double updateMedian = 0.0, updateWorst = 0.0, updateCpu = 0.0, skinMedian = 0.0, meanGrowth = 0.0, maxGrowth = 0.0;
+	double radialError = 0.0; ///< mean over frames of the mean radial distance of the skinned vertices to their ellipsoid
+};
+
+/// Mean over the clustered vertices of |v - radial projection of v onto its own ellipsoid| (the paper's E, over the
+/// whole body): how loosely the moved ellipsoids fit the skin at this frame.
+double meanRadialError(const bodyfit::SkinnedBody& body, const std::vector<int>& cluster)
+{
+	double sum = 0.0;
+	int n = 0;
+	for (int v = 0; v < int(cluster.size()); ++v)
+		if (cluster[std::size_t(v)] >= 0)
+		{
+			const Eigen::Vector3d p = body.vertices().row(v).transpose();
+			sum += (p - body.ellipsoids()[std::size_t(cluster[std::size_t(v)])].radialProjection(p)).norm();
+			++n;
+		}
+	return n > 0 ? sum / n : 0.0;
+};
+
+ClipTiming timeClip(bodyfit::SkinnedBody& body, const bodyfit::AnimationClip& clip, const std::vector<int>& cluster,
+					int repeats)
+{
+	const bodyfit::Rig& rig = body.rig();
+	ClipTiming out;
+	out.frames = int(clip.duration * 30.0) + 1;
+	std::vector<double> update, cpu, skin;
+	double growthSum = 0.0;
+	int growthCount = 0;
+	Eigen::MatrixX3d skinned;
+	for (int r = 0; r < std::max(1, repeats); ++r)
+		for (int f = 0; f < out.frames; ++f)
+		{
+			const double t = f / 30.0;
+			Clock::time_point t0 = Clock::now();
+			const double c0 = threadCpuMs();
+			body.pose(clip, t);
+			cpu.push_back(threadCpuMs() - c0);
+			update.push_back(msSince(t0));
+			t0 = Clock::now();
+			bodyfit::skinVertices(rig, bodyfit::skinningMatrices(rig, bodyfit::poseBones(rig, clip, t)), skinned);
+			skin.push_back(msSince(t0));
+			if (r == 0)
+				out.radialError += meanRadialError(body, cluster) / out.frames;
+			if (r == 0)
+				for (int j = 0; j < int(body.ellipsoids().size()); ++j)
+					if (body.mode(j) == bodyfit::EllipsoidMotion::Refit)
+					{
+						growthSum += body.lastGrowth(j);
+						++growthCount;
+						out.maxGrowth = std::max(out.maxGrowth, body.lastGrowth(j));
+					}
+		}
+	out.updateMedian = median(update);
+	out.updateWorst = *std::max_element(update.begin(), update.end());
+	out.updateCpu = median(cpu);
+	out.skinMedian = median(skin);
+	out.meanGrowth = growthCount > 0 ? growthSum / growthCount : 0.0;
+	return out;
+}
+
+} // namespace
+
+BODYFIT_BENCH_SUITE(skinning, "rigged body: per-frame update (pose, skin, ellipsoids) and the bind-pose fit")
+{
+	bodyfit_bench::Table frames({"body", "clip", "growth", "frames", "update ms median", "update ms worst",
+								 "update cpu ms median", "skinning ms median", "growth mm mean", "growth mm max",
+								 "radial error mm"});
+	bodyfit_bench::Table fits({"body", "vertices", "ellipsoids", "rigid", "bound points", "fit ms median", "bind ms",
+							   "radial error mm (bind)"});
+	const int repeats = ctx.repeatsGiven ? ctx.repeats : (ctx.quick ? 1 : 5);
+	for (const char* name : {"female_young", "male_young"})
+	{
+		const bodyfit::Rig rig =
+			bodyfit::loadRig(std::string(BODYFIT_ASSET_DIR) + "/animated/" + name + ".animated.glb");
+		bodyfit::BodyFit fit;
+		const double fitMs = bodyfit_bench::medianMs(ctx.quick ? 1 : 3, [&] {
+			fit = bodyfit::fitBody(rig.bindMesh, bodyfit::segmentBody(rig.bindMesh).labels);
+		});
+		bodyfit::SkinBinding binding;
+		const Clock::time_point t0 = Clock::now();
+		binding = bodyfit::bindSkin(rig, fit);
+		const double bindMs = msSince(t0);
+		int rigid = 0;
+		for (const bodyfit::EllipsoidBinding& e : binding.ellipsoids)
+			rigid += e.mode == bodyfit::EllipsoidMotion::Rigid;
+		fits.addRow({name, bodyfit_bench::fmtInt(rig.bindMesh.vertexCount()), bodyfit_bench::fmtInt(long(fit.ellipsoids.size())),
+					 bodyfit_bench::fmtInt(rigid), bodyfit_bench::fmtInt(binding.vertexPoints + binding.coverPoints),
+					 bodyfit_bench::fmt(fitMs, 1), bodyfit_bench::fmt(bindMs, 1),
+					 bodyfit_bench::fmt(fit.meanRadialError() * 1000.0, 2)});
+		for (const bool perAxis : {true, false})
+		{
+			bodyfit::SkinnedBody body(rig, fit, binding, {perAxis});
+			for (const bodyfit::AnimationClip& clip : rig.clips)
+			{
+				const ClipTiming c = timeClip(body, clip, binding.vertexEllipsoid, repeats);
+				frames.addRow({name, clip.name, perAxis ? "per-axis" : "uniform", bodyfit_bench::fmtInt(c.frames),
+							   bodyfit_bench::fmt(c.updateMedian, 3), bodyfit_bench::fmt(c.updateWorst, 3),
+							   bodyfit_bench::fmt(c.updateCpu, 3), bodyfit_bench::fmt(c.skinMedian, 3),
+							   bodyfit_bench::fmt(c.meanGrowth * 1000.0, 2), bodyfit_bench::fmt(c.maxGrowth * 1000.0, 1),
+							   bodyfit_bench::fmt(c.radialError * 1000.0, 2)});
+			}
+		}
+	}
+	const int rc = bodyfit_bench::emit(ctx, "skinning_frames", frames);
+	return std::max(rc, bodyfit_bench::emit(ctx, "skinning_fit", fits));
+}

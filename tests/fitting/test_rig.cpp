@@ -1,0 +1,318 @@
+// Rigged input (rig.h): a two-bone bent cylinder written as glTF in the test, whose skinned vertices are known in
+// closed form; the bundled animated bodies; every bad input with its one-line error.
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/rig.h"
+#include "support/gltf_rig.h"
+#include "support/paths.h"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <limits>
+
+using namespace bodyfit;
+using bodyfit_test::GltfRig;
+
+namespace
+{
+
+constexpr double kPi = 3.14159265358979323846;
+
+Eigen::Quaternionf aboutZ(double degrees)
+{
+	return Eigen::Quaternionf(Eigen::AngleAxisf(float(degrees * kPi / 180.0), Eigen::Vector3f::UnitZ()));
+}
+
+/// Weight of the upper bone at height y: 0 below 0.5, 1 above 1.5, linear in between.
+double upperWeight(double y)
+{
+	return std::clamp(y - 0.5, 0.0, 1.0);
+}
+
+/// A closed cylinder of radius 0.2 along y from 0 to 2, bones "lower" (origin) and "upper" (y = 1, child of lower).
+/// Weights are stored unnormalised (1.5 x the true ones). The upper bone's rest rotation is 30 degrees about z while
+/// the skin is bound straight (inverse bind = translate(0, -1, 0)): rest pose != bind pose. Clip "bend" over 1 s:
+/// lower translates (0,0,0) -> (1,0,0), upper rotates 0 -> 45 -> 90 degrees about z (keys at 0, 0.5, 1 s).
+GltfRig bentCylinder()
+{
+	GltfRig rig;
+	const int rings = 9, segments = 12;
+	for (int r = 0; r < rings; ++r)
+		for (int s = 0; s < segments; ++s)
+		{
+			const double a = 2.0 * kPi * s / segments;
+			rig.positions.emplace_back(float(0.2 * std::cos(a)), float(0.25 * r), float(0.2 * std::sin(a)));
+		}
+	rig.positions.emplace_back(0.0f, 0.0f, 0.0f);
+	rig.positions.emplace_back(0.0f, 2.0f, 0.0f);
+	const std::uint32_t bottom = rings * segments, top = bottom + 1;
+	auto id = [&](int r, int s) { return std::uint32_t(r * segments + (s % segments)); };
+	for (int r = 0; r + 1 < rings; ++r)
+		for (int s = 0; s < segments; ++s)
+			rig.indices.insert(rig.indices.end(), {id(r, s), id(r + 1, s), id(r, s + 1), id(r, s + 1), id(r + 1, s), id(r + 1, s + 1)});
+	for (int s = 0; s < segments; ++s)
+	{
+		rig.indices.insert(rig.indices.end(), {bottom, id(0, s), id(0, s + 1)});
+		rig.indices.insert(rig.indices.end(), {top, id(rings - 1, s + 1), id(rings - 1, s)});
+	}
+	for (const Eigen::Vector3f& p : rig.positions)
+	{
+		const double w1 = upperWeight(p.y());
+		rig.joints0.push_back({0, 1, 0, 0});
+		rig.weights0.push_back({float(1.5 * (1.0 - w1)), float(1.5 * w1), 0.0f, 0.0f});
+	}
+	rig.joints = {{"lower", -1, Eigen::Vector3f::Zero(), Eigen::Quaternionf::Identity()},
+				  {"upper", 0, Eigen::Vector3f(0.0f, 1.0f, 0.0f), aboutZ(30.0)}};
+	Eigen::Matrix4f upperInverseBind = Eigen::Matrix4f::Identity();
+	upperInverseBind(1, 3) = -1.0f;
+	rig.inverseBind = {Eigen::Matrix4f::Identity(), upperInverseBind};
+	bodyfit_test::GltfClip bend{"bend", {}};
+	bend.channels.push_back({0, "translation", {0.0f, 1.0f}, {0, 0, 0, 1, 0, 0}});
+	std::vector<float> rotations;
+	for (double deg : {0.0, 45.0, 90.0})
+	{
+		const Eigen::Quaternionf q = aboutZ(deg);
+		rotations.insert(rotations.end(), {q.x(), q.y(), q.z(), q.w()});
+	}
+	bend.channels.push_back({1, "rotation", {0.0f, 0.5f, 1.0f}, rotations});
+	rig.clips.push_back(bend);
+	return rig;
+}
+
+/// Closed form of the bent cylinder: S_lower = T(shift), S_upper = T(shift) T(0,1,0) Rz(angle) T(0,-1,0).
+Eigen::Vector3d expectedSkin(const Eigen::Vector3d& v, double shiftX, double angleDegrees)
+{
+	const Eigen::Translation3d shift(shiftX, 0.0, 0.0);
+	const Eigen::Affine3d lower(shift);
+	const Eigen::Affine3d upper = shift * Eigen::Translation3d(0, 1, 0) *
+								  Eigen::AngleAxisd(angleDegrees * kPi / 180.0, Eigen::Vector3d::UnitZ()) *
+								  Eigen::Translation3d(0, -1, 0);
+	const double w1 = upperWeight(v.y());
+	return (1.0 - w1) * (lower * v) + w1 * (upper * v);
+}
+
+double maxDeviation(const Eigen::MatrixX3d& skinned, const TriMesh& bind, double shiftX, double angle)
+{
+	double worst = 0.0;
+	for (int v = 0; v < bind.vertexCount(); ++v)
+		worst = std::max(worst, (skinned.row(v).transpose() - expectedSkin(bind.V.row(v).transpose(), shiftX, angle)).norm());
+	return worst;
+}
+
+std::string loadError(const GltfRig& rig, const std::string& name, const RigLoadOptions& options = {})
+{
+	try
+	{
+		loadRig(bodyfit_test::writeGltfRig(rig, name), options);
+	}
+	catch (const InvalidInputError& e)
+	{
+		return e.what();
+	}
+	return "no error";
+}
+
+} // namespace
+
+TEST_CASE("loadRig reads the bent cylinder: bind mesh, skeleton, normalised weights, clip in seconds", "[rig]")
+{
+	const Rig rig = loadRig(bodyfit_test::writeGltfRig(bentCylinder(), "cylinder"));
+	REQUIRE(rig.bindMesh.vertexCount() == 9 * 12 + 2);
+	REQUIRE(rig.boneCount() >= 2);
+	int deforming = 0;
+	for (const Bone& b : rig.bones)
+		deforming += b.deforms;
+	CHECK(deforming == 2);
+	// Normalised: stored as 1.5 x the weights, every vertex sums to 1 (float weights: 1e-6).
+	for (int v = 0; v < rig.bindMesh.vertexCount(); ++v)
+	{
+		double sum = 0.0;
+		for (int k = rig.weightStart[std::size_t(v)]; k < rig.weightStart[std::size_t(v) + 1]; ++k)
+			sum += rig.weight[std::size_t(k)];
+		CHECK(sum == Approx(1.0).margin(1e-12));
+	}
+	REQUIRE(rig.clips.size() == 1);
+	CHECK(rig.clips[0].name == "bend");
+	// glTF comes in as ticks of 1 ms: the 1 s clip must be 1 s, not 1000 s or 1 ms.
+	CHECK(rig.clips[0].ticksPerSecond == Approx(1000.0));
+	CHECK(rig.clips[0].duration == Approx(1.0).margin(1e-9));
+}
+
+TEST_CASE("Skinning the bent cylinder matches the closed form at bind, rest and animated poses", "[rig]")
+{
+	const Rig rig = loadRig(bodyfit_test::writeGltfRig(bentCylinder(), "cylinder"));
+	// Positions, keys and matrices are floats in the file: ~1e-7 relative on a 2 m body, so 1e-5 m is generous and
+	// still far below any real mistake (a wrong weight or angle moves the top by > 1 cm).
+	constexpr double tol = 1e-5;
+	Eigen::MatrixX3d skinned;
+	SECTION("bind pose: the stored mesh (inverse bind matrices, not the 30 degree rest rotation)")
+	{
+		skinVertices(rig, skinningMatrices(rig, bindPoseBones(rig)), skinned);
+		CHECK(maxDeviation(skinned, rig.bindMesh, 0.0, 0.0) < tol);
+	}
+	SECTION("rest pose (a clip without channels): the upper bone's rest rotation bends the cylinder 30 degrees")
+	{
+		AnimationClip still;
+		still.duration = 1.0;
+		skinVertices(rig, skinningMatrices(rig, poseBones(rig, still, 0.5)), skinned);
+		CHECK(maxDeviation(skinned, rig.bindMesh, 0.0, 30.0) < tol);
+		CHECK(maxDeviation(skinned, rig.bindMesh, 0.0, 0.0) > 0.1); // the check can fail: rest != bind
+	}
+	SECTION("animated: linear translation, slerp rotation, times in seconds, held after the end")
+	{
+		for (double t : {0.0, 0.2, 0.5, 0.7, 1.0, 1.5})
+		{
+			const double tc = std::min(t, 1.0);
+			skinVertices(rig, skinningMatrices(rig, poseBones(rig, rig.clips[0], t)), skinned);
+			INFO("t = " << t);
+			CHECK(maxDeviation(skinned, rig.bindMesh, tc, 90.0 * tc) < tol);
+		}
+	}
+}
+
+TEST_CASE("loadRig takes more than 4 influences per vertex (JOINTS_1 / WEIGHTS_1)", "[rig]")
+{
+	GltfRig rig = bentCylinder();
+	// Six joints: lower, upper and four children of upper with rest offsets; every vertex gets a little of each.
+	for (int k = 0; k < 4; ++k)
+	{
+		rig.joints.push_back({"extra" + std::to_string(k), 1, Eigen::Vector3f(0.1f * float(k), 0.2f, 0.0f), Eigen::Quaternionf::Identity()});
+		Eigen::Matrix4f ib = Eigen::Matrix4f::Identity();
+		ib(0, 3) = -0.1f * float(k);
+		ib(1, 3) = -1.2f;
+		rig.inverseBind.push_back(ib);
+	}
+	rig.joints1.assign(rig.positions.size(), {2, 3, 4, 5});
+	rig.weights1.assign(rig.positions.size(), {0.05f, 0.05f, 0.05f, 0.05f});
+	for (auto& w : rig.weights0)
+		w = {w[0] * 0.8f / 1.5f, w[1] * 0.8f / 1.5f, 0.0f, 0.0f};
+	const Rig loaded = loadRig(bodyfit_test::writeGltfRig(rig, "six_influences"));
+	int most = 0;
+	for (int v = 0; v < loaded.bindMesh.vertexCount(); ++v)
+		most = std::max(most, loaded.influenceCount(v));
+	CHECK(most == 6);
+	Eigen::MatrixX3d skinned;
+	skinVertices(loaded, skinningMatrices(loaded, bindPoseBones(loaded)), skinned);
+	CHECK((skinned - loaded.bindMesh.V).cwiseAbs().maxCoeff() < 1e-5); // bind pose reproduces the mesh (floats)
+}
+
+TEST_CASE("loadRig welds a seam vertex: the merged vertex keeps the weights of the first copy", "[rig]")
+{
+	GltfRig rig = bentCylinder();
+	// A copy of vertex 0 (bottom ring, lower bone only) used by the first face, weighted to the upper bone.
+	rig.positions.push_back(rig.positions[0]);
+	rig.joints0.push_back({0, 1, 0, 0});
+	rig.weights0.push_back({0.0f, 1.0f, 0.0f, 0.0f});
+	rig.indices[0] = std::uint32_t(rig.positions.size() - 1);
+	const Rig loaded = loadRig(bodyfit_test::writeGltfRig(rig, "seam"));
+	CHECK(loaded.report.weldedVertices == 1);
+	REQUIRE(loaded.bindMesh.vertexCount() == 9 * 12 + 2);
+	REQUIRE(loaded.influenceCount(0) == 1);
+	CHECK(loaded.bones[std::size_t(loaded.weightBone[0])].name == "lower");
+}
+
+TEST_CASE("loadRig with several skinned meshes takes the largest, or the one named", "[rig]")
+{
+	GltfRig rig = bentCylinder();
+	rig.hat = true;
+	const std::string path = bodyfit_test::writeGltfRig(rig, "cylinder_and_hat");
+	const Rig body = loadRig(path);
+	CHECK(body.meshName == "body");
+	CHECK(body.bindMesh.vertexCount() == 9 * 12 + 2);
+	RigLoadOptions options;
+	options.meshName = "hat";
+	const Rig hat = loadRig(path, options);
+	CHECK(hat.meshName == "hat");
+	CHECK(hat.bindMesh.vertexCount() == 4);
+	options.meshName = "cloth";
+	CHECK_THROWS_WITH(loadRig(path, options), Catch::Contains("no skinned mesh named 'cloth'") && Catch::Contains("'hat'"));
+}
+
+TEST_CASE("Bad rigged input: one-line errors naming what is wrong", "[rig][robust]")
+{
+	const float nan = std::numeric_limits<float>::quiet_NaN();
+	SECTION("no skin")
+	{
+		GltfRig rig = bentCylinder();
+		rig.skinned = false;
+		CHECK_THAT(loadError(rig, "bad_noskin"), Catch::Contains("no skinned mesh"));
+	}
+	SECTION("no animation")
+	{
+		GltfRig rig = bentCylinder();
+		rig.clips.clear();
+		CHECK_THAT(loadError(rig, "bad_noanim"), Catch::Contains("no animation"));
+	}
+	SECTION("unknown clip, by name and by index")
+	{
+		const Rig rig = loadRig(bodyfit_test::writeGltfRig(bentCylinder(), "cylinder"));
+		CHECK(&requireClip(rig, "bend") == &rig.clips[0]);
+		CHECK(&requireClip(rig, "0") == &rig.clips[0]);
+		CHECK_THROWS_WITH(requireClip(rig, "run"), Catch::Contains("unknown clip 'run'") && Catch::Contains("'bend'"));
+		CHECK_THROWS_WITH(requireClip(rig, "1"), Catch::Contains("unknown clip '1'"));
+	}
+	SECTION("unknown mesh name")
+	{
+		RigLoadOptions options;
+		options.meshName = "cloth";
+		CHECK_THAT(loadError(bentCylinder(), "cylinder", options), Catch::Contains("no skinned mesh named 'cloth'"));
+	}
+	SECTION("a vertex whose weights are all zero")
+	{
+		GltfRig rig = bentCylinder();
+		rig.weights0[5] = {0.0f, 0.0f, 0.0f, 0.0f};
+		CHECK_THAT(loadError(rig, "bad_zero_weight"), Catch::Contains("vertex 5 has no skin weight"));
+	}
+	SECTION("a non-finite weight")
+	{
+		// assimp's glTF reader drops a NaN weight before the loader sees it (readers of other formats pass it on
+		// and the loader rejects it as "must be finite"): vertex 7 (bottom ring, lower bone only) is then left
+		// without weight, which is the error.
+		GltfRig rig = bentCylinder();
+		rig.weights0[7][0] = nan;
+		CHECK_THAT(loadError(rig, "bad_nan_weight"), Catch::Contains("vertex 7 has no skin weight"));
+	}
+	SECTION("a non-finite key")
+	{
+		GltfRig rig = bentCylinder();
+		rig.clips[0].channels[1].values[4] = nan; // x of the second rotation key
+		CHECK_THAT(loadError(rig, "bad_nan_key"), Catch::Contains("clip 'bend'") && Catch::Contains("rotation key 1 is not finite"));
+	}
+	SECTION("zero duration")
+	{
+		GltfRig rig = bentCylinder();
+		for (auto& ch : rig.clips[0].channels)
+		{
+			ch.times = {0.0f};
+			ch.values.resize(ch.path == "rotation" ? 4 : 3);
+		}
+		CHECK_THAT(loadError(rig, "bad_zero_duration"), Catch::Contains("clip 'bend': zero duration"));
+	}
+	SECTION("a static mesh file, a missing file")
+	{
+		CHECK_THROWS_WITH(loadRig(bodyfit_test::dataPath("tetra.obj")), Catch::Contains("no skinned mesh"));
+		CHECK_THROWS_AS(loadRig(bodyfit_test::dataPath("does_not_exist.glb")), MeshLoadError);
+	}
+}
+
+TEST_CASE("The bundled animated bodies load: 13,380 vertices, 4 influences, walk and arms_raise from the bind pose", "[rig]")
+{
+	for (const char* name : {"female_young", "male_young"})
+	{
+		const Rig rig = loadRig(bodyfit_test::assetPath(std::string("animated/") + name + ".animated.glb"));
+		INFO(name);
+		CHECK(rig.bindMesh.vertexCount() == 13380);
+		REQUIRE(rig.clips.size() == 2);
+		CHECK(rig.clips[std::size_t(rig.findClip("walk"))].duration == Approx(4.3).margin(1e-6));
+		CHECK(rig.clips[std::size_t(rig.findClip("arms_raise"))].duration == Approx(6.0).margin(1e-6));
+		Eigen::MatrixX3d skinned;
+		for (const AnimationClip& clip : rig.clips)
+		{
+			// Every clip starts in the bind pose (data README); float keys: the data set's own 0.07 mm bound.
+			skinVertices(rig, skinningMatrices(rig, poseBones(rig, clip, 0.0)), skinned);
+			CHECK((skinned - rig.bindMesh.V).rowwise().norm().maxCoeff() < 7e-5);
+			skinVertices(rig, skinningMatrices(rig, poseBones(rig, clip, clip.duration / 2)), skinned);
+			CHECK((skinned - rig.bindMesh.V).rowwise().norm().maxCoeff() > 0.05); // and moves
+		}
+	}
+}
