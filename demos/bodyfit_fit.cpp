@@ -4,17 +4,17 @@
 #include "bodyfit/fitting/skinned_fit.h"
 #include "common/cli.h"
 
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <chrono>
 #include <optional>
 #include <utility>
 
 namespace
 {
 
-const char *kUsage = R"(usage: bodyfit-fit MESH -o OUT.json [options]
+const char* kUsage = R"(usage: bodyfit-fit MESH -o OUT.json [options]
 
 Fits ellipsoids to a body mesh (any format assimp reads) and writes them as JSON. A rigged file (a
 skinned mesh: glTF/GLB, FBX, ...) is fitted in its bind pose and the fit records the bone bindings
@@ -64,10 +64,10 @@ std::string ms(double v)
 	return buf;
 }
 
-void printSummary(const bodyfit::LoadedMesh &loaded, const bodyfit::BodyFit &fit, const std::string &regions,
-				  const std::string &out, const std::string &exportPath)
+void printSummary(const bodyfit::LoadedMesh& loaded, const bodyfit::BodyFit& fit, const std::string& regions,
+				  const std::string& out, const std::string& exportPath)
 {
-	const bodyfit::MeshReport &r = loaded.report;
+	const bodyfit::MeshReport& r = loaded.report;
 	const double scale = fit.params.relativeToHeight ? fit.source.height : 1.0;
 	std::cout << "bodyfit-fit: " << r.path << "\n";
 	std::cout << "  mesh      " << loaded.mesh.vertexCount() << " vertices, " << loaded.mesh.faceCount()
@@ -84,8 +84,7 @@ void printSummary(const bodyfit::LoadedMesh &loaded, const bodyfit::BodyFit &fit
 			  << " (" << fit.splitsAccepted << " splits accepted, " << fit.splitsRejected << " rejected)\n";
 	if (fit.timingMs("fitting.cover") > 0.0)
 		std::cout << "  cover     skin between ellipsoids inside the union: " << fit.coverExtraPoints
-				  << " extra points enclosed (pieces of boundary triangles), " << fit.coverRounds
-				  << " refit round(s)\n";
+				  << " extra points enclosed (pieces of boundary triangles), " << fit.coverRounds << " refit round(s)\n";
 	else
 		std::cout << "  cover     off (--no-triangle-cover)\n";
 	std::cout << "  threshold mu_torso " << mm(fit.params.muTorso * scale) << ", mu_limbs "
@@ -107,135 +106,129 @@ void printSummary(const bodyfit::LoadedMesh &loaded, const bodyfit::BodyFit &fit
 	std::cout << "\n";
 	if (fit.warnings.empty())
 		std::cout << "  warnings  none\n";
-	for (const std::string &w : fit.warnings)
+	for (const std::string& w : fit.warnings)
 		std::cout << "  warning   " << w << "\n";
 }
 
-bool hasExtension(const std::string &path, const char *ext)
+bool hasExtension(const std::string& path, const char* ext)
 {
 	std::string e = std::filesystem::path(path).extension().string();
-	for (char &c : e)
+	for (char& c : e)
 		c = char(std::tolower((unsigned char)c));
 	return e == ext;
 }
 
 } // namespace
 
-int main(int argc, char **argv)
+int main(int argc, char** argv)
 {
-	return bodyfit_cli::runMain(
-		"bodyfit-fit",
-		[&]
+	return bodyfit_cli::runMain("bodyfit-fit", [&] {
+		using bodyfit_cli::UsageError;
+		const bodyfit_cli::Args args(argc, argv,
+									 {{"-o", true, "OUT.json"},
+									  {"--mu-torso", true, "R"},
+									  {"--mu-limbs", true, "R"},
+									  {"--absolute", false, ""},
+									  {"--max-ellipsoids", true, "N"},
+									  {"--up", true, "y|z"},
+									  {"--scale", true, "S"},
+									  {"--export-mesh", true, "OUT.obj|OUT.ply"},
+									  {"--segments", true, "OUT.ply|OUT.obj"},
+									  {"--skinned-mesh", true, "NAME"},
+									  {"--no-segmentation", false, ""},
+									  {"--no-triangle-cover", false, ""}});
+		if (args.helpRequested())
 		{
-			using bodyfit_cli::UsageError;
-			const bodyfit_cli::Args args(argc, argv,
-										 {{"-o", true, "OUT.json"},
-										  {"--mu-torso", true, "R"},
-										  {"--mu-limbs", true, "R"},
-										  {"--absolute", false, ""},
-										  {"--max-ellipsoids", true, "N"},
-										  {"--up", true, "y|z"},
-										  {"--scale", true, "S"},
-										  {"--export-mesh", true, "OUT.obj|OUT.ply"},
-										  {"--segments", true, "OUT.ply|OUT.obj"},
-										  {"--skinned-mesh", true, "NAME"},
-										  {"--no-segmentation", false, ""},
-										  {"--no-triangle-cover", false, ""}});
-			if (args.helpRequested())
-			{
-				std::cout << kUsage;
-				return bodyfit_cli::kExitOk;
-			}
-
-			// Arguments: everything is checked before any work is done.
-			args.requirePositional(1, "MESH argument");
-			const std::string meshPath = args.positional()[0];
-			if (!args.has("-o"))
-				throw UsageError("missing -o OUT.json (see --help)");
-			const std::string outPath = args.value("-o");
-			if (outPath.empty())
-				throw UsageError("-o: empty file name");
-			const std::string exportPath = args.value("--export-mesh");
-			if (args.has("--export-mesh") && !hasExtension(exportPath, ".obj") && !hasExtension(exportPath, ".ply"))
-				throw UsageError("--export-mesh: \"" + exportPath + "\" must end in .obj or .ply");
-			const std::string segmentsPath = args.value("--segments");
-			if (args.has("--segments") && !hasExtension(segmentsPath, ".obj") && !hasExtension(segmentsPath, ".ply"))
-				throw UsageError("--segments: \"" + segmentsPath + "\" must end in .ply or .obj");
-			if (args.has("--no-segmentation") && args.has("--segments"))
-				throw UsageError("--segments needs the segmentation: drop --no-segmentation");
-
-			bodyfit::FitPipelineOptions options;
-			options.load.up = args.choice("--up", {"y", "z"}, "y") == "z" ? bodyfit::UpAxis::Z : bodyfit::UpAxis::Y;
-			options.load.scale = args.number("--scale", 1.0, 0.0, 1e9, /*open=*/true);
-			options.segment = !args.has("--no-segmentation");
-			options.fit.maxEllipsoids = args.integer("--max-ellipsoids", options.fit.maxEllipsoids, 1, 100000);
-			options.fit.coverTriangles = !args.has("--no-triangle-cover");
-			// Thresholds: fractions of the height, or metres with --absolute. Every length not given (the other
-			// threshold, sigma, the cover spacing) keeps its relative default; the pipeline converts all of them with
-			// H.
-			const bool absolute = args.has("--absolute");
-			const double huge = absolute ? 10.0 : 1.0; // a threshold >= the whole body (10 m, or 100% of H) is a typo
-			for (const auto &[flag, length] :
-				 {std::pair{"--mu-torso", &options.lengths.muTorso}, std::pair{"--mu-limbs", &options.lengths.muLimbs}})
-				if (args.has(flag))
-					*length = {args.number(flag, 0.0, 0.0, huge, /*open=*/true), !absolute};
-
-			// A rigged file (a skinned mesh): fit its bind pose and record the bone bindings (skinned_fit.h).
-			std::optional<bodyfit::Rig> rig;
-			bodyfit::FitPipelineResult result;
-			if (args.has("--skinned-mesh") || bodyfit::hasSkinnedMesh(meshPath))
-			{
-				const auto t0 = std::chrono::steady_clock::now();
-				rig = bodyfit::loadRig(meshPath,
-									   {options.load, args.value("--skinned-mesh"), /*requireAnimation=*/false});
-				const double loadMs =
-					std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-				result = bodyfit::fitLoadedMesh(bodyfit::LoadedMesh{rig->bindMesh, rig->bindMesh, rig->report}, options,
-												std::filesystem::path(meshPath).filename().string(), loadMs);
-			}
-			else
-				result = bodyfit::fitMeshFile(meshPath, options);
-			bodyfit::BodyFit &fit = result.fit;
-			const bodyfit::TriMesh &mesh = result.loaded.mesh;
-			const std::string regionSummary =
-				!options.segment  ? "whole mesh as one region (--no-segmentation)"
-				: result.fallback ? "whole mesh as one region (segmentation failed)"
-								  : std::to_string(bodyfit::kBodyRegionCount) + " body regions (segmentation)";
-			if (result.fallback)
-				std::cerr << "bodyfit-fit: warning: " << fit.warnings.front() << "\n";
-
-			if (rig)
-			{
-				const auto tBind = std::chrono::steady_clock::now();
-				fit.skinning = std::make_shared<const bodyfit::SkinBinding>(bodyfit::bindSkin(*rig, fit));
-				fit.setTiming(
-					"skinning.bind",
-					std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tBind).count());
-			}
-
-			// Outputs.
-			bodyfit_cli::ensureParentDirectory(outPath);
-			bodyfit::writeEllipsoidJson(outPath, fit);
-			if (!exportPath.empty())
-			{
-				bodyfit_cli::ensureParentDirectory(exportPath);
-				bodyfit::exportEllipsoidMesh(exportPath, fit.ellipsoids);
-			}
-			if (!segmentsPath.empty())
-			{
-				bodyfit_cli::ensureParentDirectory(segmentsPath);
-				Eigen::MatrixX3d colors;
-				const bodyfit::TriMesh preview = bodyfit::segmentationPreview(mesh, result.segmentation, &colors);
-				bodyfit::saveTriMesh(segmentsPath, preview, &colors);
-			}
-			std::string extraOutputs = exportPath;
-			if (!segmentsPath.empty())
-				extraOutputs += (extraOutputs.empty() ? "" : ", ") + segmentsPath;
-			printSummary(result.loaded, fit, regionSummary, outPath, extraOutputs);
-			if (rig)
-				std::cout << "  skinning  rig with " << rig->boneCount() << " bones, " << rig->clips.size()
-						  << " clip(s): bind pose fitted, " << fit.skinning->vertexPoints + fit.skinning->coverPoints
-						  << " skin points bound to the ellipsoids (" << ms(fit.timingMs("skinning.bind")) << ")\n";
+			std::cout << kUsage;
 			return bodyfit_cli::kExitOk;
-		});
+		}
+
+		// Arguments: everything is checked before any work is done.
+		args.requirePositional(1, "MESH argument");
+		const std::string meshPath = args.positional()[0];
+		if (!args.has("-o"))
+			throw UsageError("missing -o OUT.json (see --help)");
+		const std::string outPath = args.value("-o");
+		if (outPath.empty())
+			throw UsageError("-o: empty file name");
+		const std::string exportPath = args.value("--export-mesh");
+		if (args.has("--export-mesh") && !hasExtension(exportPath, ".obj") && !hasExtension(exportPath, ".ply"))
+			throw UsageError("--export-mesh: \"" + exportPath + "\" must end in .obj or .ply");
+		const std::string segmentsPath = args.value("--segments");
+		if (args.has("--segments") && !hasExtension(segmentsPath, ".obj") && !hasExtension(segmentsPath, ".ply"))
+			throw UsageError("--segments: \"" + segmentsPath + "\" must end in .ply or .obj");
+		if (args.has("--no-segmentation") && args.has("--segments"))
+			throw UsageError("--segments needs the segmentation: drop --no-segmentation");
+
+		bodyfit::FitPipelineOptions options;
+		options.load.up = args.choice("--up", {"y", "z"}, "y") == "z" ? bodyfit::UpAxis::Z : bodyfit::UpAxis::Y;
+		options.load.scale = args.number("--scale", 1.0, 0.0, 1e9, /*open=*/true);
+		options.segment = !args.has("--no-segmentation");
+		options.fit.maxEllipsoids = args.integer("--max-ellipsoids", options.fit.maxEllipsoids, 1, 100000);
+		options.fit.coverTriangles = !args.has("--no-triangle-cover");
+		// Thresholds: fractions of the height, or metres with --absolute. Every length not given (the other
+		// threshold, sigma, the cover spacing) keeps its relative default; the pipeline converts all of them with H.
+		const bool absolute = args.has("--absolute");
+		const double huge = absolute ? 10.0 : 1.0; // a threshold >= the whole body (10 m, or 100% of H) is a typo
+		for (const auto& [flag, length] : {std::pair{"--mu-torso", &options.lengths.muTorso},
+										   std::pair{"--mu-limbs", &options.lengths.muLimbs}})
+			if (args.has(flag))
+				*length = {args.number(flag, 0.0, 0.0, huge, /*open=*/true), !absolute};
+
+		// A rigged file (a skinned mesh): fit its bind pose and record the bone bindings (skinned_fit.h).
+		std::optional<bodyfit::Rig> rig;
+		bodyfit::FitPipelineResult result;
+		if (args.has("--skinned-mesh") || bodyfit::hasSkinnedMesh(meshPath))
+		{
+			const auto t0 = std::chrono::steady_clock::now();
+			rig = bodyfit::loadRig(meshPath, {options.load, args.value("--skinned-mesh"), /*requireAnimation=*/false});
+			const double loadMs =
+				std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+			result = bodyfit::fitLoadedMesh(bodyfit::LoadedMesh{rig->bindMesh, rig->bindMesh, rig->report}, options,
+											std::filesystem::path(meshPath).filename().string(), loadMs);
+		}
+		else
+			result = bodyfit::fitMeshFile(meshPath, options);
+		bodyfit::BodyFit& fit = result.fit;
+		const bodyfit::TriMesh& mesh = result.loaded.mesh;
+		const std::string regionSummary =
+			!options.segment ? "whole mesh as one region (--no-segmentation)"
+			: result.fallback ? "whole mesh as one region (segmentation failed)"
+							  : std::to_string(bodyfit::kBodyRegionCount) + " body regions (segmentation)";
+		if (result.fallback)
+			std::cerr << "bodyfit-fit: warning: " << fit.warnings.front() << "\n";
+
+		if (rig)
+		{
+			const auto tBind = std::chrono::steady_clock::now();
+			fit.skinning = std::make_shared<const bodyfit::SkinBinding>(bodyfit::bindSkin(*rig, fit));
+			const auto bindTime = std::chrono::steady_clock::now() - tBind;
+			fit.setTiming("skinning.bind", std::chrono::duration<double, std::milli>(bindTime).count());
+		}
+
+		// Outputs.
+		bodyfit_cli::ensureParentDirectory(outPath);
+		bodyfit::writeEllipsoidJson(outPath, fit);
+		if (!exportPath.empty())
+		{
+			bodyfit_cli::ensureParentDirectory(exportPath);
+			bodyfit::exportEllipsoidMesh(exportPath, fit.ellipsoids);
+		}
+		if (!segmentsPath.empty())
+		{
+			bodyfit_cli::ensureParentDirectory(segmentsPath);
+			Eigen::MatrixX3d colors;
+			const bodyfit::TriMesh preview = bodyfit::segmentationPreview(mesh, result.segmentation, &colors);
+			bodyfit::saveTriMesh(segmentsPath, preview, &colors);
+		}
+		std::string extraOutputs = exportPath;
+		if (!segmentsPath.empty())
+			extraOutputs += (extraOutputs.empty() ? "" : ", ") + segmentsPath;
+		printSummary(result.loaded, fit, regionSummary, outPath, extraOutputs);
+		if (rig)
+			std::cout << "  skinning  rig with " << rig->boneCount() << " bones, " << rig->clips.size()
+					  << " clip(s): bind pose fitted, " << fit.skinning->vertexPoints + fit.skinning->coverPoints
+					  << " skin points bound to the ellipsoids (" << ms(fit.timingMs("skinning.bind")) << ")\n";
+		return bodyfit_cli::kExitOk;
+	});
 }
