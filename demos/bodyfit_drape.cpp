@@ -10,6 +10,7 @@
 #include "bodyfit/drape/simulation.h"
 
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/input_files.h"
 #include "bodyfit/fitting/mesh_io.h"
 
 #include <chrono>
@@ -42,7 +43,7 @@ const char* kUsage =
 
 [[noreturn]] void badInput(const std::string& message)
 {
-	std::cerr << "bodyfit-drape: " << message << "\n";
+	std::cerr << "bodyfit-drape: error: " << message << "\n";
 	std::exit(2);
 }
 
@@ -154,8 +155,8 @@ int main(int argc, char** argv)
 		if (!args.show.empty())
 			scene.render.showEllipsoids = args.show == "ellipsoids";
 		for (const std::string* p : {&args.body, &args.ellipsoids})
-			if (!p->empty() && !std::filesystem::is_regular_file(*p))
-				throw InvalidInputError("file '" + *p + "' does not exist");
+			if (!p->empty() && !inputFileProblem(*p).empty())
+				throw InvalidInputError(*p + ": cannot open file: " + inputFileProblem(*p));
 		std::cerr << "bodyfit-drape: loading body " << (args.body.empty() ? scene.body.mesh : args.body) << "\n";
 		body = loadBody(scene, args.body, args.ellipsoids);
 		sim = std::make_unique<DrapeSimulation>(scene, body);
@@ -171,6 +172,11 @@ int main(int argc, char** argv)
 	catch (const InvalidInputError& e)
 	{
 		badInput(e.what());
+	}
+	catch (const std::exception& e) // a bug: every bad input above is a typed error
+	{
+		std::cerr << "bodyfit-drape: internal error: " << e.what() << "\n";
+		return 1;
 	}
 
 	const int steps = args.steps >= 0 ? args.steps : scene.solver.steps;

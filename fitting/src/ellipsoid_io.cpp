@@ -2,6 +2,7 @@
 #include "bodyfit/fitting/ellipsoid_io.h"
 
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/input_files.h"
 #include "bodyfit/fitting/mesh_io.h"
 
 #include <nlohmann/json.hpp>
@@ -244,6 +245,9 @@ void writeEllipsoidJson(const std::string& path, const BodyFit& fit)
 BodyFit parseEllipsoidJson(const std::string& text, const std::string& name)
 {
 	const Reader r(name);
+	const std::string depth = jsonDepthProblem(text);
+	if (!depth.empty()) // before a tree is built: deep nesting overflows the stack of recursive JSON code
+		throw FormatError(name + ": not a usable JSON document: " + depth);
 	Json doc;
 	try
 	{
@@ -344,14 +348,7 @@ BodyFit parseEllipsoidJson(const std::string& text, const std::string& name)
 
 BodyFit readEllipsoidJson(const std::string& path)
 {
-	std::ifstream in(path, std::ios::binary);
-	if (!in)
-		throw FormatError(path + ": cannot open (missing or unreadable)");
-	std::ostringstream text;
-	text << in.rdbuf();
-	if (in.bad())
-		throw FormatError(path + ": read failed");
-	return parseEllipsoidJson(text.str(), path);
+	return parseEllipsoidJson(readJsonInputFile(path, "fit file"), path);
 }
 
 TriMesh ellipsoidMesh(const std::vector<FittedEllipsoid>& ellipsoids, int subdivisions, Eigen::MatrixX3d* colors)

@@ -1,6 +1,7 @@
 #include "bodyfit/drape/scene.h"
 
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/input_files.h"
 
 #include <algorithm>
 #include <cmath>
@@ -156,8 +157,9 @@ public:
 		if (p.is_relative())
 			p = std::filesystem::path(baseDir_) / p;
 		p = p.lexically_normal();
-		if (!std::filesystem::is_regular_file(p))
-			fail(keyPath(key), "file '" + p.string() + "' does not exist");
+		const std::string problem = inputFileProblem(p.string());
+		if (!problem.empty())
+			fail(keyPath(key), "file '" + p.string() + "' " + problem);
 		return p.string();
 	}
 
@@ -242,6 +244,10 @@ BodySpec parseBody(ObjectReader r)
 		const json& f = r.get("fit");
 		if (!f.is_object())
 			r.fail(r.keyPath("fit"), std::string("expected an object of fit parameters, got ") + typeName(f));
+		for (auto it = f.begin(); it != f.end(); ++it) // fit parameters are plain values (checked in loadBody)
+			if (it.value().is_structured())
+				r.fail(r.keyPath("fit") + "." + it.key(), std::string("expected a number or true/false, got ") +
+															   typeName(it.value()));
 		b.fit = f;
 	}
 	b.up = r.string("up", "y", {"y", "z"}) == "z" ? UpAxis::Z : UpAxis::Y;
@@ -574,21 +580,30 @@ Scene parseScene(const nlohmann::json& document, const std::string& path)
 	return scene;
 }
 
-Scene loadScene(const std::string& path)
+Scene parseSceneText(const std::string& text, const std::string& path)
 {
-	std::ifstream in(path);
-	if (!in)
-		throw FormatError(path + ": cannot open scene file");
+	const std::string depth = jsonDepthProblem(text);
+	if (!depth.empty()) // before a tree is built: deep nesting overflows the stack of recursive JSON code
+		throw FormatError(path + ": not a usable JSON document: " + depth);
 	json document;
 	try
 	{
-		document = json::parse(in, nullptr, true, /*ignore_comments=*/true);
+		document = json::parse(text, nullptr, true, /*ignore_comments=*/true);
 	}
 	catch (const json::parse_error& e)
 	{
 		throw FormatError(path + ": invalid JSON at byte " + std::to_string(e.byte) + ": " + e.what());
 	}
+	catch (const json::exception& e) // e.g. out_of_range.406, a number too large for a double
+	{
+		throw FormatError(path + ": invalid JSON: " + e.what());
+	}
 	return parseScene(document, path);
+}
+
+Scene loadScene(const std::string& path)
+{
+	return parseSceneText(readJsonInputFile(path, "scene file"), path);
 }
 
 } // namespace bodyfit::drape

@@ -16,6 +16,7 @@
 #include "bodyfit/fitting/fit_error.h"
 #include "bodyfit/fitting/fit_quality.h"
 #include "bodyfit/fitting/geodesics.h"
+#include "bodyfit/fitting/input_files.h"
 #include "bodyfit/fitting/inside_test.h"
 #include "bodyfit/fitting/kmeans.h"
 #include "bodyfit/fitting/mesh_io.h"

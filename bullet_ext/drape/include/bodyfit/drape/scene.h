@@ -197,8 +197,12 @@ struct Scene
 	int sampleEvery = 10;    ///< inside-body metric sampled every this many steps (and at the end)
 };
 
-/// Reads and validates a scene file. \throws FormatError naming the file and the key.
+/// Reads and validates a scene file (a regular file of at most kMaxJsonFileBytes, nesting at most kMaxJsonDepth
+/// levels; input_files.h). \throws FormatError naming the file and the key.
 Scene loadScene(const std::string& path);
+
+/// Parses (comments allowed) and validates scene text, with the depth check of loadScene; `path` as in parseScene.
+Scene parseSceneText(const std::string& text, const std::string& path);
 
 /// Validates an already-parsed document; `path` names the file in messages and anchors relative paths.
 Scene parseScene(const nlohmann::json& document, const std::string& path);
