@@ -280,7 +280,7 @@ TEST_CASE("structural errors name the key", "[scene]")
 
 TEST_CASE("loadScene names the file for unreadable or malformed JSON", "[scene]")
 {
-	CHECK_THROWS_WITH(loadScene("/no/such/scene.json"), "/no/such/scene.json: cannot open scene file");
+	CHECK_THROWS_WITH(loadScene("/no/such/scene.json"), "/no/such/scene.json: cannot open scene file: does not exist");
 	const std::string path = (std::filesystem::temp_directory_path() / "bodyfit_bad_scene.json").string();
 	{
 		std::ofstream out(path);
