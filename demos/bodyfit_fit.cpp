@@ -172,6 +172,13 @@ int main(int argc, char** argv)
 		const bodyfit::LoadedMesh loaded = bodyfit::loadTriMesh(meshPath, load);
 		const double loadMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 		const bodyfit::TriMesh& mesh = loaded.mesh;
+		// A fit file holds coordinates within kMaxFitCoordinate (ellipsoid_io.h): refuse before fitting what could not
+		// be written (typically millimetres without --scale).
+		if (loaded.full.V.cwiseAbs().maxCoeff() > bodyfit::kMaxFitCoordinate)
+			throw bodyfit::InvalidInputError(
+				meshPath + ": the mesh reaches " + bodyfit_cli::formatNumber(loaded.full.V.cwiseAbs().maxCoeff()) +
+				" m from the origin (scale " + bodyfit_cli::formatNumber(load.scale) + "), a fit file holds coordinates within " +
+				bodyfit_cli::formatNumber(bodyfit::kMaxFitCoordinate) + " m: millimetres need --scale 0.001, centimetres --scale 0.01");
 
 		if (absolute)
 		{

@@ -18,6 +18,7 @@
 
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
@@ -59,6 +60,20 @@ inline std::string oneLine(std::string s)
 	while (!s.empty() && s.back() == ' ')
 		s.pop_back();
 	return s;
+}
+
+/// A number for messages: the shortest text that reads back as `v` (1e+39, 0.001, 1278.228983290694).
+inline std::string formatNumber(double v)
+{
+	if (v == std::floor(v) && std::abs(v) < 1e15)
+		return std::to_string((long long)v);
+	for (int precision = 1;; ++precision)
+	{
+		char buf[40];
+		std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+		if (precision >= 17 || std::strtod(buf, nullptr) == v)
+			return buf;
+	}
 }
 
 /// Strict parse of a finite double: the whole text must be a number.

@@ -256,3 +256,37 @@ TEST_CASE("robust hostile: OBJ object, group and material counts are bounded", "
 		twoMaterials += i % 2 ? "usemtl a\n" : "usemtl b\n";
 	CHECK(loadTriMesh(tmp.write("two.obj", twoMaterials)).mesh.vertexCount() == 4);
 }
+
+TEST_CASE("robust hostile: fit files hold only geometry a float and a body have", "[robust][hostile][json]")
+{
+	// Issue 15 class 8: axes 1e39 became inf in Bullet's float, 1e-40 became 0, 1e12 threw every cloth node 1e12 m
+	// away while the metrics said 0 inside, 0 NaN. The range is [1e-6, 1000] m for semi-axes, |centre| <= 1000 m.
+	auto withAxes = [](const std::string& axes) {
+		std::string text = kValidFit + "}";
+		return text.replace(text.find("[0.1, 0.12, 0.1]"), 16, axes);
+	};
+	auto fitError = [](const std::string& text) {
+		return errorOf<FormatError>([&] { parseEllipsoidJson(text, "f.json"); });
+	};
+	CHECK_THAT(fitError(withAxes("[0.1, 1e39, 0.1]")), Catch::EndsWith("f.json: ellipsoids[0].axes[1]: must be in [1e-06, 1000] m (got 1e+39)"));
+	CHECK_THAT(fitError(withAxes("[0.1, 1e-40, 0.1]")), Catch::EndsWith("axes[1]: must be in [1e-06, 1000] m (got 1e-40)"));
+	CHECK_THAT(fitError(withAxes("[1e12, 0.1, 0.1]")), Catch::EndsWith("axes[0]: must be in [1e-06, 1000] m (got 1000000000000)"));
+	CHECK_THAT(fitError(withAxes("[0.1, 0.1, 0]")), Catch::EndsWith("axes[2]: must be > 0 (got 0)"));
+	std::string far = kValidFit + "}";
+	far.replace(far.find("[0, 1.6, 0]"), 11, "[0, 1.6, -1000.5]");
+	CHECK_THAT(fitError(far), Catch::EndsWith("ellipsoids[0].center[2]: must be in [-1000, 1000] m (got -1000.5)"));
+	// The limits themselves are read.
+	CHECK(parseEllipsoidJson(withAxes("[1e-6, 1000, 0.1]")).ellipsoids[0].ellipsoid.radii.y() == 1000.0);
+	// Issue 15 class 14: an integer >= 2^63 was reported as "got -1" (wrapped to a signed value).
+	std::string big = kValidFit + "}";
+	big.replace(big.find("\"version\": 1"), 12, "\"version\": 18446744073709551615");
+	CHECK_THAT(fitError(big), Catch::EndsWith("version: must be an integer >= 0 and < 2^31 (got 18446744073709551615)"));
+	// The writer holds fits to the same range and writes nothing otherwise (a millimetre body fitted unscaled).
+	TempDir tmp("bodyfit_robust_fitrange");
+	BodyFit fit = parseEllipsoidJson(kValidFit + "}");
+	fit.ellipsoids[0].ellipsoid.radii.x() = 1278.0;
+	CHECK_THAT(errorOf<FormatError>([&] { writeEllipsoidJson(tmp.path("o.json"), fit); }),
+			   Catch::Contains("o.json: not written, the fit is outside a fit file's range: ellipsoids[0].axes[0]: must be "
+							   "in [1e-06, 1000] m (got 1278)"));
+	CHECK_FALSE(std::ifstream(tmp.path("o.json")).good());
+}

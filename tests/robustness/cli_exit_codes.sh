@@ -85,6 +85,8 @@ if [ -x "$FIT" ]; then
 	{ printf '{"asset": '; head -c 100000 /dev/zero | tr '\0' '['; } >"$TMP/nested.gltf"
 	expect 2 "nested deeper than 64 levels" -- "$FIT" "$TMP/nested.gltf" -o "$W/o.json"
 	expect 0 "" -- "$FIT" "$DATA/robust_valid_tetra.glb" -o "$TMP/glb.json"
+	# Geometry a fit file cannot hold (class 8): a millimetre mesh fitted without --scale is refused before fitting.
+	expect 2 "robust_millimetre.obj: the mesh reaches 1700 m from the origin" -- "$FIT" "$DATA/robust_millimetre.obj" -o "$W/o.json"
 	# Documented repairs / generic path: these succeed.
 	expect 0 "" -- "$FIT" "$DATA/robust_nonmanifold.obj" -o "$TMP/nm.json"
 	expect 0 "" -- "$FIT" "$DATA/robust_self_intersecting.obj" -o "$TMP/si.json"
@@ -112,6 +114,8 @@ if [ -x "$DRAPE" ]; then
 	mkfifo "$TMP/pipe.json"
 	expect 2 "pipe.json: cannot open scene file: is a FIFO" -- "$DRAPE" "$TMP/pipe.json" --steps 1
 	expect 2 "pipe.json: cannot open file: is a FIFO" -- "$DRAPE" "$SCENE" --ellipsoids "$TMP/pipe.json" --steps 1
+	sed 's/"axes": \[0.1, 0.12, 0.1\]/"axes": [0.1, 1e39, 0.1]/' "$DATA/robust_valid_one.json" >"$TMP/axes_1e39.json"
+	expect 2 "axes\[1\]: must be in \[1e-06, 1000\] m (got 1e+39)" -- "$DRAPE" "$SCENE" --ellipsoids "$TMP/axes_1e39.json" --steps 1
 	expect 2 "robust_fit_deep_nesting.json: not a usable JSON document" -- "$DRAPE" "$SCENE" --ellipsoids "$DATA/robust_fit_deep_nesting.json" --steps 1
 	{ printf '{"body": {"mesh": "x.obj", "fit": {"x": '; head -c 300000 /dev/zero | tr '\0' '['; } >"$TMP/deep_scene.json"
 	expect 2 "deep_scene.json: not a usable JSON document: arrays/objects nested deeper than 64" -- "$DRAPE" "$TMP/deep_scene.json" --steps 1
