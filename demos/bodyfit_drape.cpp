@@ -12,6 +12,7 @@
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/input_files.h"
 #include "bodyfit/fitting/mesh_io.h"
+#include "common/cli.h"
 
 #include <chrono>
 #include <cstdio>
@@ -112,6 +113,24 @@ Args parseArgs(int argc, char** argv)
 	return a;
 }
 
+/// --metrics, --png and --frames can be written, and none of them is an input of the run: checked after the scene
+/// is read and before the body is loaded, so that a bad output path is not found after the whole simulation.
+/// \throws bodyfit_cli::UsageError naming the option.
+void requireOutputs(const Args& a, const bodyfit::drape::Scene& scene)
+{
+	if (!a.metrics.empty())
+		bodyfit_cli::requireWritableOutput(a.metrics, "--metrics");
+	if (!a.png.empty())
+		bodyfit_cli::requireWritableOutput(a.png, "--png");
+	if (!a.frames.empty())
+		bodyfit_cli::requireWritableOutput(a.frames, "--frames", /*directory=*/true);
+	bodyfit_cli::requireDistinctOutputs({{"--metrics", a.metrics}, {"--png", a.png}, {"--frames", a.frames}},
+										{{"scene file", scene.path},
+										 {"body mesh", a.body.empty() ? scene.body.mesh : a.body},
+										 {"ellipsoid file", a.ellipsoids.empty() ? scene.body.ellipsoids : a.ellipsoids},
+										 {"garment mesh", scene.garment.mesh}});
+}
+
 #ifdef BODYFIT_HAVE_RENDER
 bodyfit::render::DrawMesh toDraw(const bodyfit::TriMesh& m, const Eigen::Vector3f& color, bool twoSided)
 {
@@ -157,9 +176,14 @@ int main(int argc, char** argv)
 		for (const std::string* p : {&args.body, &args.ellipsoids})
 			if (!p->empty() && !inputFileProblem(*p).empty())
 				throw InvalidInputError(*p + ": cannot open file: " + inputFileProblem(*p));
+		requireOutputs(args, scene);
 		std::cerr << "bodyfit-drape: loading body " << (args.body.empty() ? scene.body.mesh : args.body) << "\n";
 		body = loadBody(scene, args.body, args.ellipsoids);
 		sim = std::make_unique<DrapeSimulation>(scene, body);
+	}
+	catch (const bodyfit_cli::UsageError& e)
+	{
+		badInput(e.what());
 	}
 	catch (const FormatError& e)
 	{

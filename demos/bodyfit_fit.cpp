@@ -6,6 +6,7 @@
 #include "common/cli.h"
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -45,17 +46,18 @@ used. Exit status: 0 ok, 2 bad input (one-line reason on stderr), 1 internal err
 
 using Clock = std::chrono::steady_clock;
 
+// Large values switch to %g instead of being cut off at the buffer's end (a 1e30 m error used to print 31 digits).
 std::string mm(double metres)
 {
-	char buf[32];
-	std::snprintf(buf, sizeof buf, "%.2f mm", metres * 1000.0);
+	char buf[64];
+	std::snprintf(buf, sizeof buf, std::abs(metres) < 1e9 ? "%.2f mm" : "%.6g mm", metres * 1000.0);
 	return buf;
 }
 
 std::string ms(double v)
 {
-	char buf[32];
-	std::snprintf(buf, sizeof buf, v < 10.0 ? "%.2f ms" : "%.1f ms", v);
+	char buf[64];
+	std::snprintf(buf, sizeof buf, v < 10.0 ? "%.2f ms" : v < 1e12 ? "%.1f ms" : "%.6g ms", v);
 	return buf;
 }
 
@@ -154,6 +156,14 @@ int main(int argc, char** argv)
 		const bool segment = !args.has("--no-segmentation");
 		if (!segment && args.has("--segments"))
 			throw UsageError("--segments needs the segmentation: drop --no-segmentation");
+		// Outputs: writable, and none of them the input or each other (checked before the load and the fit).
+		bodyfit_cli::requireWritableOutput(outPath, "-o");
+		if (args.has("--export-mesh"))
+			bodyfit_cli::requireWritableOutput(exportPath, "--export-mesh");
+		if (args.has("--segments"))
+			bodyfit_cli::requireWritableOutput(segmentsPath, "--segments");
+		bodyfit_cli::requireDistinctOutputs({{"-o", outPath}, {"--export-mesh", exportPath}, {"--segments", segmentsPath}},
+											{{"input mesh", meshPath}});
 
 		bodyfit::LoadOptions load;
 		load.up = args.choice("--up", {"y", "z"}, "y") == "z" ? bodyfit::UpAxis::Z : bodyfit::UpAxis::Y;

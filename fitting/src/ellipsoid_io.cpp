@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -467,9 +468,14 @@ TriMesh ellipsoidMesh(const std::vector<FittedEllipsoid>& ellipsoids, int subdiv
 
 void exportEllipsoidMesh(const std::string& path, const std::vector<FittedEllipsoid>& ellipsoids, int subdivisions)
 {
-	auto endsWith = [&](const char* ext) {
+	auto endsWith = [&](const char* ext) { // case-insensitive: X.OBJ passed the CLI check and then failed here
 		const std::string e(ext);
-		return path.size() >= e.size() && path.compare(path.size() - e.size(), e.size(), e) == 0;
+		if (path.size() < e.size())
+			return false;
+		for (std::size_t i = 0; i < e.size(); ++i)
+			if (std::tolower((unsigned char)path[path.size() - e.size() + i]) != e[i])
+				return false;
+		return true;
 	};
 	if (!endsWith(".obj") && !endsWith(".ply"))
 		throw InvalidInputError(path + ": ellipsoid mesh export needs a .obj or .ply file name");

@@ -10,6 +10,7 @@
 #include <assimp/scene.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
@@ -378,7 +379,9 @@ LoadedMesh loadTriMesh(const std::string& path, const LoadOptions& options)
 
 void saveTriMesh(const std::string& path, const TriMesh& mesh, const Eigen::MatrixX3d* colors)
 {
-	const bool ply = path.size() >= 4 && path.compare(path.size() - 4, 4, ".ply") == 0;
+	std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
+	std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+	const bool ply = ext == ".ply"; // X.PLY too (it used to get OBJ text)
 	std::ofstream out(path);
 	if (!out)
 		throw MeshLoadError(path + ": cannot open for writing");

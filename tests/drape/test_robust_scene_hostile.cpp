@@ -85,3 +85,18 @@ TEST_CASE("robust hostile: scene files and the files they name must be regular f
 	CHECK(bodyfit_test::finishesWithin(2.0, fifo, [&] { what = quietLoadError(scene); }));
 	CHECK_THAT(what, Catch::EndsWith("s.json: body.mesh: file '" + fifo + "' is a FIFO (named pipe), not a regular file"));
 }
+
+TEST_CASE("robust hostile: counts in a scene are integers, reported as given", "[robust][hostile][scene]")
+{
+	// Issue 15 class 14: body.fit.max_ellipsoids 0.5 reached the fitter as 0 (an error naming no key), 1.9 became 1;
+	// an integer >= 2^63 was reported wrapped.
+	CHECK_THAT(sceneTextError(sceneWithFit("{\"max_ellipsoids\": 0.5}")),
+			   Catch::EndsWith("body.fit.max_ellipsoids: expected an integer, got a non-integral number 0.5"));
+	CHECK_THAT(sceneTextError(sceneWithFit("{\"max_ellipsoids\": 1.9}")), Catch::Contains("non-integral number 1.9"));
+	CHECK_THAT(sceneTextError(sceneWithFit("{\"max_ellipsoids\": 0}")),
+			   Catch::EndsWith("body.fit.max_ellipsoids: value 0 is outside [1, 10000]"));
+	CHECK_NOTHROW(bodyfit::drape::parseSceneText(sceneWithFit("{\"max_ellipsoids\": 40}"), "/virtual/s.json"));
+	std::string big = sceneWithFit("{}");
+	big.insert(big.size() - 1, ", \"solver\": {\"steps\": 18446744073709551615}");
+	CHECK_THAT(sceneTextError(big), Catch::EndsWith("solver.steps: value 18446744073709551615 is outside [0, 10000000]"));
+}

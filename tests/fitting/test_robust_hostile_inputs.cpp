@@ -290,3 +290,18 @@ TEST_CASE("robust hostile: fit files hold only geometry a float and a body have"
 							   "in [1e-06, 1000] m (got 1278)"));
 	CHECK_FALSE(std::ifstream(tmp.path("o.json")).good());
 }
+
+TEST_CASE("robust hostile: output extensions are case-insensitive", "[robust][hostile][files]")
+{
+	// Issue 15 class 14: `--export-mesh X.OBJ` passed the CLI check and then failed in the export (after the JSON was
+	// written), `--segments X.PLY` got OBJ text.
+	TempDir tmp("bodyfit_robust_ext");
+	const LoadedMesh tetra = loadTriMesh(dataPath("tetra.obj"));
+	saveTriMesh(tmp.path("T.PLY"), tetra.mesh);
+	CHECK(slurp(tmp.path("T.PLY")).rfind("ply\nformat ascii 1.0\n", 0) == 0);
+	CHECK(loadTriMesh(tmp.path("T.PLY")).mesh.faceCount() == 4);
+	const BodyFit fit = parseEllipsoidJson(kValidFit + "}");
+	exportEllipsoidMesh(tmp.path("E.OBJ"), fit.ellipsoids, 0);
+	CHECK(loadTriMesh(tmp.path("E.OBJ")).mesh.faceCount() == 20); // one icosahedron (subdivision 0)
+	CHECK_THROWS_WITH(exportEllipsoidMesh(tmp.path("E.stl"), fit.ellipsoids), Catch::Contains("needs a .obj or .ply"));
+}

@@ -3,9 +3,9 @@
 # on failure, prints exactly one line on stderr that names the problem.
 # usage: cli_exit_codes.sh BODYFIT_FIT BODYFIT_DRAPE TEST_DATA_DIR   (registered with CTest when the demos are built)
 set -u
-FIT=$1
-DRAPE=$2
-DATA=$3
+FIT=$(readlink -f "$1")
+DRAPE=$(readlink -f "$2")
+DATA=$(readlink -f "$3")
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
 fails=0
@@ -87,6 +87,18 @@ if [ -x "$FIT" ]; then
 	expect 0 "" -- "$FIT" "$DATA/robust_valid_tetra.glb" -o "$TMP/glb.json"
 	# Geometry a fit file cannot hold (class 8): a millimetre mesh fitted without --scale is refused before fitting.
 	expect 2 "robust_millimetre.obj: the mesh reaches 1700 m from the origin" -- "$FIT" "$DATA/robust_millimetre.obj" -o "$W/o.json"
+	# Outputs (classes 13, 14): checked before the load, never an input, never a forgotten option value.
+	echo x >"$TMP/afile"
+	cp "$DATA/tetra.obj" "$TMP/in.obj"
+	expect 2 "-o: '.*in.obj' is the input mesh; refusing to overwrite it" -- "$FIT" "$TMP/in.obj" -o "$TMP/in.obj"
+	cmp -s "$DATA/tetra.obj" "$TMP/in.obj" || { echo "FAIL: the input mesh was changed"; fails=$((fails + 1)); }
+	expect 2 "-o needs a value (-o OUT.json), got the option --scale" -- sh -c 'cd "$1" && shift && exec "$@"' sh "$W" "$FIT" "$DATA/tetra.obj" -o --scale 0.01
+	expect 2 "-o: cannot write '.*afile/x.json': Not a directory" -- "$FIT" "$DATA/tetra.obj" -o "$TMP/afile/x.json"
+	expect 2 "-o: cannot write '/proc/x.json'" -- "$FIT" "$DATA/tetra.obj" -o /proc/x.json
+	expect 2 "-o: cannot write '.*': it is a directory" -- "$FIT" "$DATA/tetra.obj" -o "$DATA"
+	expect 2 "--segments: '.*a.obj' is also the output of --export-mesh" -- "$FIT" "$DATA/tetra.obj" -o "$W/o.json" --export-mesh "$W/a.obj" --segments "$W/a.obj"
+	expect 0 "" -- "$FIT" "$DATA/tetra.obj" -o "$TMP/upper.json" --export-mesh "$TMP/E.OBJ" --segments "$TMP/S.PLY"
+	{ [ "$(head -n 1 "$TMP/S.PLY")" = ply ] && grep -q '^v ' "$TMP/E.OBJ"; } || { echo "FAIL: X.PLY / X.OBJ not written in their formats"; fails=$((fails + 1)); }
 	# Documented repairs / generic path: these succeed.
 	expect 0 "" -- "$FIT" "$DATA/robust_nonmanifold.obj" -o "$TMP/nm.json"
 	expect 0 "" -- "$FIT" "$DATA/robust_self_intersecting.obj" -o "$TMP/si.json"
@@ -119,6 +131,20 @@ if [ -x "$DRAPE" ]; then
 	expect 2 "robust_fit_deep_nesting.json: not a usable JSON document" -- "$DRAPE" "$SCENE" --ellipsoids "$DATA/robust_fit_deep_nesting.json" --steps 1
 	{ printf '{"body": {"mesh": "x.obj", "fit": {"x": '; head -c 300000 /dev/zero | tr '\0' '['; } >"$TMP/deep_scene.json"
 	expect 2 "deep_scene.json: not a usable JSON document: arrays/objects nested deeper than 64" -- "$DRAPE" "$TMP/deep_scene.json" --steps 1
+	# Outputs (class 13): checked before the body is loaded and the run (was exit 1 after the whole simulation).
+	sum=$(cksum <"$SCENE")
+	expect 2 "--metrics: '.*windy_patch.json' is the scene file; refusing to overwrite it" -- "$DRAPE" "$SCENE" --metrics "$SCENE" --steps 1
+	[ "$(cksum <"$SCENE")" = "$sum" ] || { echo "FAIL: the scene was changed"; fails=$((fails + 1)); }
+	expect 2 "--metrics: cannot write '/proc/m.json'" -- "$DRAPE" "$SCENE" --metrics /proc/m.json --steps 1
+	expect 2 "--metrics: cannot write '.*': it is a directory" -- "$DRAPE" "$SCENE" --metrics "$DATA" --steps 1
+	expect 2 "--png: " -- "$DRAPE" "$SCENE" --png "$TMP/afile/p.png" --steps 1
+	expect 2 "--frames: cannot write '.*afile': it exists and is not a directory" -- "$DRAPE" "$SCENE" --frames "$TMP/afile" --steps 1
+	BENCH="$(dirname "$FIT")/bodyfit-bench"
+	[ -x "$BENCH" ] && expect 2 "--out: cannot write '.*afile': it exists and is not a directory" -- "$BENCH" mvee --out "$TMP/afile"
+	# body.fit.max_ellipsoids must be a count (class 14: 0.5 reached the fitter as 0, 1.9 as 1).
+	printf '{"body": {"mesh": "%s", "fit": {"max_ellipsoids": 0.5}}, "collider": "ellipsoids", "garment": {"type": "patch"}}' \
+		"$DATA/tetra.obj" >"$TMP/half.json"
+	expect 2 "body.fit.max_ellipsoids: expected an integer, got a non-integral number 0.5" -- "$DRAPE" "$TMP/half.json" --steps 1
 	expect 0 "" -- "$DRAPE" --help
 else
 	echo "skip: bodyfit-drape not built ($DRAPE)"

@@ -110,7 +110,10 @@ public:
 	int checkInteger(const json& v, const std::string& where, int lo, int hi) const
 	{
 		if (!v.is_number_integer() && !v.is_number_unsigned())
-			fail(where, std::string("expected an integer, got ") + typeName(v));
+			fail(where, std::string("expected an integer, got ") + (v.is_number() ? "a non-integral number " + v.dump() : typeName(v)));
+		if (v.is_number_unsigned() && v.get<unsigned long long>() > (unsigned long long)hi) // >= 2^63: no long long
+			fail(where, "value " + std::to_string(v.get<unsigned long long>()) + " is outside [" + std::to_string(lo) +
+							", " + std::to_string(hi) + "]");
 		const long long x = v.get<long long>();
 		if (x < lo || x > hi)
 			fail(where, "value " + std::to_string(x) + " is outside [" + std::to_string(lo) + ", " +
@@ -248,6 +251,8 @@ BodySpec parseBody(ObjectReader r)
 			if (it.value().is_structured())
 				r.fail(r.keyPath("fit") + "." + it.key(), std::string("expected a number or true/false, got ") +
 															   typeName(it.value()));
+		if (f.contains("max_ellipsoids")) // a count: 0.5 used to reach the fitter as 0 (no key named), 1.9 as 1
+			r.checkInteger(f["max_ellipsoids"], r.keyPath("fit") + ".max_ellipsoids", 1, 10000);
 		b.fit = f;
 	}
 	b.up = r.string("up", "y", {"y", "z"}) == "z" ? UpAxis::Z : UpAxis::Y;
