@@ -8,6 +8,7 @@
 #endif
 #include "bodyfit/drape/scene.h"
 #include "bodyfit/drape/simulation.h"
+#include "bodyfit/drape/stability.h"
 
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/input_files.h"
@@ -20,6 +21,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <stdexcept>
 #include <string>
 
 namespace
@@ -41,6 +43,12 @@ const char* kUsage =
 	"  --png OUT.png        picture of the final state: front and side views, body (or ellipsoids) + cloth\n"
 	"  --show WHAT          draw the body mesh (default) or the ellipsoids in the picture\n"
 	"Progress goes to stderr, a summary to stdout. Exit status: 0 ok, 2 bad input, 1 failure.\n";
+
+/// A run stopped by BlowUpWatch (exit 1: the scene passed every range check, so this is a failure, not bad input).
+struct BlownUp : std::runtime_error
+{
+	using std::runtime_error::runtime_error;
+};
 
 [[noreturn]] void badInput(const std::string& message)
 {
@@ -231,7 +239,11 @@ int main(int argc, char** argv)
 			if (done == total)
 				std::fprintf(stderr, "\n");
 		};
+		const BlowUpWatch watch(*sim);
 		auto afterStep = [&](int k) {
+			const std::string blowUp = watch.check(*sim);
+			if (!blowUp.empty()) // a run must not end with exit 0 and plausible metrics after NaN or a launch
+				throw BlownUp("the simulation blew up at step " + std::to_string(k) + ": " + blowUp);
 			if (!args.frames.empty() && (k % scene.frameEvery == 0 || k == steps))
 				writeFrame(args.frames, *sim, frameIndex);
 		};
@@ -295,6 +307,11 @@ int main(int argc, char** argv)
 			std::cout << "picture    " << args.png << " (" << ro.width << "x" << ro.height << ", front | side)\n";
 		}
 #endif
+	}
+	catch (const BlownUp& e)
+	{
+		std::cerr << "\nbodyfit-drape: error: " << e.what() << "\n";
+		return 1;
 	}
 	catch (const std::exception& e)
 	{

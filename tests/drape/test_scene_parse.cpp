@@ -40,7 +40,8 @@ json validDocument()
 			{"type": "pin", "select": "edge", "side": "+z", "attach": "body"},
 			{"type": "body_motion", "pivot": [0, 1, 0], "loop": true, "keyframes": [
 				{"t": 0, "translation": [0, 0, 0]},
-				{"t": 1, "translation": [0, 0, 1], "axis": [0, 1, 0], "angle_deg": 30}]}
+				{"t": 1, "translation": [0, 0, 1], "axis": [0, 1, 0], "angle_deg": 30},
+				{"t": 2, "translation": [0, 0, 0]}]}
 		],
 		"render": {"width": 640, "height": 480, "show": "ellipsoids"},
 		"output": {"frame_every": 5, "sample_every": 3}
@@ -94,7 +95,7 @@ TEST_CASE("a scene with every section parses to the given values", "[scene]")
 	CHECK(s.effects.pin->side == "+z");
 	CHECK(s.effects.pin->toBody);
 	REQUIRE(s.effects.bodyMotion);
-	CHECK(s.effects.bodyMotion->keyframes.size() == 2);
+	CHECK(s.effects.bodyMotion->keyframes.size() == 3); // a loop ends where it starts
 	CHECK(s.effects.bodyMotion->loop);
 	CHECK(s.render.showEllipsoids);
 	CHECK(s.frameEvery == 5);

@@ -145,6 +145,18 @@ if [ -x "$DRAPE" ]; then
 	printf '{"body": {"mesh": "%s", "fit": {"max_ellipsoids": 0.5}}, "collider": "ellipsoids", "garment": {"type": "patch"}}' \
 		"$DATA/tetra.obj" >"$TMP/half.json"
 	expect 2 "body.fit.max_ellipsoids: expected an integer, got a non-integral number 0.5" -- "$DRAPE" "$TMP/half.json" --steps 1
+	# Values that produced NaN cloth or launched it (classes 7, 9): refused by physical ranges.
+	scene_with() { printf '{"body": {"mesh": "%s"}, "collider": "none", "garment": %s, "effects": %s}' "$DATA/tetra.obj" "$1" "$2"; }
+	scene_with '{"type": "patch", "center": [1e6, 0, 0]}' '[]' >"$TMP/far.json"
+	expect 2 "garment.center\[0\]: value 1e+06 is outside \[-1000, 1000\]" -- "$DRAPE" "$TMP/far.json" --metrics "$W/m.json" --steps 1
+	scene_with '{"type": "tube", "radius_m": 1e-9}' '[]' >"$TMP/thin.json"
+	expect 2 "garment.radius_m: value 1e-09 is outside" -- "$DRAPE" "$TMP/thin.json" --metrics "$W/m.json" --steps 1
+	scene_with '{"type": "patch"}' '[{"type": "wind", "velocity": [200, 0, 0], "turbulence": 200}, {"type": "aerodynamics", "air_density": 2000}]' >"$TMP/storm.json"
+	expect 2 "effects\[0\].velocity\[0\]: value 200 is outside \[-50, 50\]" -- "$DRAPE" "$TMP/storm.json" --metrics "$W/m.json" --steps 1
+	scene_with '{"type": "patch"}' '[{"type": "body_motion", "keyframes": [{"t": 0}, {"t": 1e-7, "translation": [0, 0, 0.01]}]}]' >"$TMP/jump.json"
+	expect 2 "keyframes\[1\].t: keyframes 1e-07 s apart" -- "$DRAPE" "$TMP/jump.json" --metrics "$W/m.json" --steps 1
+	scene_with '{"type": "patch"}' '[{"type": "body_motion", "loop": true, "keyframes": [{"t": 0}, {"t": 1, "translation": [0, 0, 1]}]}]' >"$TMP/loop.json"
+	expect 2 "effects\[0\].loop: a looping motion must end where it starts" -- "$DRAPE" "$TMP/loop.json" --metrics "$W/m.json" --steps 1
 	expect 0 "" -- "$DRAPE" --help
 else
 	echo "skip: bodyfit-drape not built ($DRAPE)"

@@ -6,6 +6,7 @@
 #include "bodyfit/drape/garment.h"
 #include "bodyfit/drape/scene.h"
 #include "bodyfit/drape/simulation.h"
+#include "bodyfit/drape/stability.h"
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 #include "bodyfit/bullet_ext/btEllipsoidShape.h"
