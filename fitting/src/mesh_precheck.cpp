@@ -131,17 +131,26 @@ std::string percentDecoded(const std::string& uri)
 
 // --- PLY -----------------------------------------------------------------------------------------------------
 
+struct PlyProperty
+{
+	int size = 0;     ///< bytes of a scalar, or of a list's count
+	int itemSize = 0; ///< bytes of each list entry; 0 for a scalar
+};
+
 struct PlyElement
 {
 	std::string name;
 	std::uint64_t count = 0;
 	int properties = 0;
 	std::uint64_t minBinaryBytes = 0; ///< scalar sizes + list count sizes (a list with no entries)
+	std::vector<PlyProperty> layout;
+	bool hasList = false;
 };
 
 struct PlyHeader
 {
 	bool ascii = true;
+	bool bigEndian = false;
 	std::uint64_t headerBytes = 0;
 	std::vector<PlyElement> elements;
 };
@@ -182,12 +191,13 @@ bool readPlyHeaderLine(const std::string& path, int lineNo, const std::vector<st
 			fail("expected 'format ascii|binary_little_endian|binary_big_endian VERSION'");
 		haveFormat = true;
 		h.ascii = tok[1] == "ascii";
+		h.bigEndian = tok[1] == "binary_big_endian";
 	}
 	else if (key == "element")
 	{
 		if (tok.size() != 3 || tok[2].find_first_not_of("0123456789") != std::string::npos || tok[2].size() > 10)
 			fail("expected 'element NAME COUNT'");
-		h.elements.push_back({tok[1], std::stoull(tok[2]), 0, 0});
+		h.elements.push_back({tok[1], std::stoull(tok[2]), 0, 0, {}, false});
 	}
 	else if (key == "property")
 	{
@@ -197,8 +207,11 @@ bool readPlyHeaderLine(const std::string& path, int lineNo, const std::vector<st
 			fail("expected 'property TYPE NAME' or 'property list TYPE TYPE NAME'");
 		if (h.elements.empty())
 			fail("property before any element");
-		h.elements.back().properties += 1;
-		h.elements.back().minBinaryBytes += std::uint64_t(plyTypeSize(list ? tok[2] : tok[1]));
+		PlyElement& e = h.elements.back();
+		e.properties += 1;
+		e.minBinaryBytes += std::uint64_t(plyTypeSize(list ? tok[2] : tok[1]));
+		e.layout.push_back({plyTypeSize(list ? tok[2] : tok[1]), list ? plyTypeSize(tok[3]) : 0});
+		e.hasList = e.hasList || list;
 	}
 	else
 		fail("unknown keyword");
@@ -256,6 +269,113 @@ void requirePlyCountsFit(const std::string& path, const PlyHeader& h)
 							 (h.ascii ? "ASCII" : "binary") + ", at least " + std::to_string(each) +
 							 " bytes each) but the file has only " + std::to_string(body) + " bytes of data");
 	}
+}
+
+/// Sequential reads of a PLY body through a 1 MiB buffer (the list scan touches every byte once).
+class PlyBodyReader
+{
+public:
+	PlyBodyReader(const std::string& path, std::uint64_t offset) : in_(path, std::ios::binary)
+	{
+		in_.seekg(std::streamoff(offset));
+	}
+	/// Next byte, or -1 at the end.
+	int get()
+	{
+		if (pos_ == buf_.size())
+		{
+			buf_.resize(1 << 20);
+			in_.read(&buf_[0], std::streamsize(buf_.size()));
+			buf_.resize(std::size_t(std::max<std::streamsize>(in_.gcount(), 0)));
+			pos_ = 0;
+			if (buf_.empty())
+				return -1;
+		}
+		++consumed_;
+		return (unsigned char)buf_[pos_++];
+	}
+	/// A little- or big-endian unsigned of `size` bytes; false at the end.
+	bool unsignedValue(int size, bool bigEndian, std::uint64_t& v)
+	{
+		v = 0;
+		for (int i = 0; i < size; ++i)
+		{
+			const int c = get();
+			if (c < 0)
+				return false;
+			v = bigEndian ? (v << 8) | std::uint64_t(c) : v | (std::uint64_t(c) << (8 * i));
+		}
+		return true;
+	}
+	/// The next whitespace-separated ASCII token; empty at the end.
+	std::string token()
+	{
+		std::string t;
+		for (int c = get(); c >= 0; c = get())
+		{
+			if (c == ' ' || c == '\t' || c == '\n' || c == '\r')
+			{
+				if (!t.empty())
+					return t;
+				continue;
+			}
+			t += char(c);
+		}
+		return t;
+	}
+	std::uint64_t consumed() const { return consumed_; }
+
+private:
+	std::ifstream in_;
+	std::string buf_;
+	std::size_t pos_ = 0;
+	std::uint64_t consumed_ = 0;
+};
+
+/// Every list count in the body fits in what is left of the file (assimp reserves the declared number of entries:
+/// a face claiming 4e9 indices was std::bad_alloc). Stops at the first short read: assimp reports truncation.
+void requirePlyListsFit(const std::string& path, const PlyHeader& h)
+{
+	const std::uint64_t body = fileSize(path) - std::min(fileSize(path), h.headerBytes);
+	PlyBodyReader r(path, h.headerBytes);
+	for (const PlyElement& e : h.elements)
+		for (std::uint64_t i = 0; i < e.count; ++i)
+			for (const PlyProperty& p : e.layout)
+			{
+				std::uint64_t n = 1;
+				if (h.ascii)
+				{
+					const std::string t = r.token();
+					if (t.empty() || (p.itemSize > 0 && t.find_first_not_of("0123456789") != std::string::npos))
+						return; // the end, or a count that is no count: assimp reports it
+					if (p.itemSize == 0)
+						continue;
+					n = t.size() > 19 ? ~std::uint64_t(0) : std::stoull(t);
+				}
+				else if (p.itemSize == 0)
+				{
+					for (int b = 0; b < p.size; ++b)
+						if (r.get() < 0)
+							return;
+					continue;
+				}
+				else if (!r.unsignedValue(p.size, h.bigEndian, n))
+					return;
+				if (p.itemSize == 0)
+					continue;
+				const std::uint64_t left = body - std::min(body, r.consumed());
+				if (n > left / (h.ascii ? 2 : std::uint64_t(p.itemSize)) + 1)
+					refuse(path, "PLY '" + e.name + "' " + std::to_string(i) + " declares a list of " +
+									 std::to_string(n) + " entries but only " + std::to_string(left) + " bytes follow");
+				for (std::uint64_t k = 0; k < n; ++k)
+				{
+					if (h.ascii && r.token().empty())
+						return;
+					for (int b = 0; !h.ascii && b < p.itemSize; ++b)
+						if (r.get() < 0)
+							return;
+				}
+			}
 }
 
 // --- glTF / GLB ----------------------------------------------------------------------------------------------
@@ -493,7 +613,9 @@ void requireSafeMeshFile(const std::string& path)
 	const std::string head = readBytes(path, 0, 65536);
 	if (head.compare(0, 3, "ply") == 0)
 	{
-		requirePlyCountsFit(path, readPlyHeader(path, head));
+		const PlyHeader header = readPlyHeader(path, head);
+		requirePlyCountsFit(path, header);
+		requirePlyListsFit(path, header);
 		return;
 	}
 	if (head.compare(0, 4, "glTF") == 0)

@@ -227,6 +227,11 @@ TEST_CASE("robust hostile: GLB and PLY headers must fit in the file", "[robust][
 							   "file has only 26 bytes of data"));
 	CHECK_THAT(meshError(dataPath("robust_ply_huge_count_binary.ply")),
 			   Catch::Contains("4000000000 'face' elements (binary, at least 1 bytes each)"));
+	// A face whose list count claims 4e9 indices (assimp reserves them: std::bad_alloc), binary and ASCII.
+	CHECK_THAT(meshError(dataPath("robust_ply_list_bomb.ply")),
+			   Catch::EndsWith("PLY 'face' 0 declares a list of 4000000000 entries but only 12 bytes follow"));
+	CHECK_THAT(meshError(dataPath("robust_ply_list_bomb_ascii.ply")),
+			   Catch::EndsWith("PLY 'face' 0 declares a list of 4000000000 entries but only 6 bytes follow"));
 	// The counts of a file that holds its data pass: the tetrahedron written as PLY (ASCII) reloads.
 	const LoadedMesh tetra = loadTriMesh(dataPath("tetra.obj"));
 	const std::string ply = tmp.path("tetra.ply");
