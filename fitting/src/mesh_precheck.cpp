@@ -543,7 +543,8 @@ void requireSafeGlb(const std::string& path, const std::string& head)
 	if (version == 2 && le32(head, 16) != 0x4E4F534Au) // "JSON"
 		refuse(path, "GLB first chunk is not JSON");
 	GltfContext g{path, true, 0};
-	const std::uint64_t afterJson = 20 + (std::uint64_t(jsonBytes) + (version == 2 ? 3 : 0)) / (version == 2 ? 4 : 1) * (version == 2 ? 4 : 1);
+	// Version 2 pads the JSON chunk to 4 bytes; version 1's body follows its JSON directly.
+	const std::uint64_t afterJson = 20 + (version == 2 ? (std::uint64_t(jsonBytes) + 3) / 4 * 4 : jsonBytes);
 	if (version == 1)
 		g.binChunkBytes = total - afterJson;
 	else if (afterJson + 8 <= total)
