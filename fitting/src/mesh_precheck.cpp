@@ -346,11 +346,16 @@ void requirePlyListsFit(const std::string& path, const PlyHeader& h)
 				if (h.ascii)
 				{
 					const std::string t = r.token();
-					if (t.empty() || (p.itemSize > 0 && t.find_first_not_of("0123456789") != std::string::npos))
-						return; // the end, or a count that is no count: assimp reports it
+					if (t.empty())
+						return;
 					if (p.itemSize == 0)
 						continue;
-					n = t.size() > 19 ? ~std::uint64_t(0) : std::stoull(t);
+					// assimp reads a count's leading digits and ignores what follows ("4000000000\0\0", found by
+					// fuzz_mesh_file: tests/data/robust_fuzz_ply_list_nul.ply)
+					const std::size_t digits = std::min(t.find_first_not_of("0123456789"), t.size());
+					if (digits == 0)
+						return; // no count at all: assimp reports it
+					n = digits > 19 ? ~std::uint64_t(0) : std::stoull(t.substr(0, digits));
 				}
 				else if (p.itemSize == 0)
 				{

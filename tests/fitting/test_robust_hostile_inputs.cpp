@@ -232,6 +232,9 @@ TEST_CASE("robust hostile: GLB and PLY headers must fit in the file", "[robust][
 			   Catch::EndsWith("PLY 'face' 0 declares a list of 4000000000 entries but only 12 bytes follow"));
 	CHECK_THAT(meshError(dataPath("robust_ply_list_bomb_ascii.ply")),
 			   Catch::EndsWith("PLY 'face' 0 declares a list of 4000000000 entries but only 6 bytes follow"));
+	// Found by fuzz_mesh_file from the ASCII seed: the count followed by NUL bytes (assimp reads the leading digits).
+	CHECK_THAT(meshError(dataPath("robust_fuzz_ply_list_nul.ply")),
+			   Catch::Contains("PLY 'face' 0 declares a list of 4000000000 entries"));
 	// The counts of a file that holds its data pass: the tetrahedron written as PLY (ASCII) reloads.
 	const LoadedMesh tetra = loadTriMesh(dataPath("tetra.obj"));
 	const std::string ply = tmp.path("tetra.ply");
