@@ -235,6 +235,17 @@ TEST_CASE("robust hostile: GLB and PLY headers must fit in the file", "[robust][
 	// Found by fuzz_mesh_file from the ASCII seed: the count followed by NUL bytes (assimp reads the leading digits).
 	CHECK_THAT(meshError(dataPath("robust_fuzz_ply_list_nul.ply")),
 			   Catch::Contains("PLY 'face' 0 declares a list of 4000000000 entries"));
+	// Found next: the count where assimp's line reading (NUL ends a line) puts it and a token scan does not.
+	CHECK_THAT(meshError(dataPath("robust_fuzz_ply_list_nul2.ply")),
+			   Catch::Contains("PLY body holds the count-like number 4000000000 at byte 182"));
+	// A negative count of a signed count type (assimp converts -1 to 4294967295), while negative coordinates with a
+	// signed count type still load.
+	const std::string header = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+							   "property float z\nelement face 4\nproperty list int int vertex_indices\nend_header\n"
+							   "-1 -1 -1\n1 0 0\n0 1 0\n0 0 1\n";
+	CHECK_THAT(meshError(tmp.write("neg.ply", header + "-1 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n")),
+			   Catch::Contains("PLY 'face' 0 declares a list of -1 entries"));
+	CHECK(loadTriMesh(tmp.write("signed.ply", header + "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n")).mesh.faceCount() == 4);
 	// The counts of a file that holds its data pass: the tetrahedron written as PLY (ASCII) reloads.
 	const LoadedMesh tetra = loadTriMesh(dataPath("tetra.obj"));
 	const std::string ply = tmp.path("tetra.ply");
