@@ -42,6 +42,8 @@ int main(int argc, char** argv)
 		args.requirePositional(1, "SUITE");
 		bodyfit_bench::Context ctx;
 		ctx.outDir = args.value("--out");
+		if (args.has("--out")) // checked now, not after the suite has run (it was exit 1, "internal error", then)
+			bodyfit_cli::requireWritableOutput(ctx.outDir, "--out", /*directory=*/true);
 		ctx.repeats = args.integer("--repeats", ctx.repeats, 1, 10000);
 		ctx.repeatsGiven = args.has("--repeats");
 		ctx.quick = args.has("--quick");

@@ -8,9 +8,12 @@
 #endif
 #include "bodyfit/drape/scene.h"
 #include "bodyfit/drape/simulation.h"
+#include "bodyfit/drape/stability.h"
 
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/input_files.h"
 #include "bodyfit/fitting/mesh_io.h"
+#include "common/cli.h"
 
 #include <chrono>
 #include <cstdio>
@@ -18,6 +21,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <stdexcept>
 #include <string>
 
 namespace
@@ -40,9 +44,15 @@ const char* kUsage =
 	"  --show WHAT          draw the body mesh (default) or the ellipsoids in the picture\n"
 	"Progress goes to stderr, a summary to stdout. Exit status: 0 ok, 2 bad input, 1 failure.\n";
 
+/// A run stopped by BlowUpWatch (exit 1: the scene passed every range check, so this is a failure, not bad input).
+struct BlownUp : std::runtime_error
+{
+	using std::runtime_error::runtime_error;
+};
+
 [[noreturn]] void badInput(const std::string& message)
 {
-	std::cerr << "bodyfit-drape: " << message << "\n";
+	std::cerr << "bodyfit-drape: error: " << message << "\n";
 	std::exit(2);
 }
 
@@ -111,6 +121,24 @@ Args parseArgs(int argc, char** argv)
 	return a;
 }
 
+/// --metrics, --png and --frames can be written, and none of them is an input of the run: checked after the scene
+/// is read and before the body is loaded, so that a bad output path is not found after the whole simulation.
+/// \throws bodyfit_cli::UsageError naming the option.
+void requireOutputs(const Args& a, const bodyfit::drape::Scene& scene)
+{
+	if (!a.metrics.empty())
+		bodyfit_cli::requireWritableOutput(a.metrics, "--metrics");
+	if (!a.png.empty())
+		bodyfit_cli::requireWritableOutput(a.png, "--png");
+	if (!a.frames.empty())
+		bodyfit_cli::requireWritableOutput(a.frames, "--frames", /*directory=*/true);
+	bodyfit_cli::requireDistinctOutputs({{"--metrics", a.metrics}, {"--png", a.png}, {"--frames", a.frames}},
+										{{"scene file", scene.path},
+										 {"body mesh", a.body.empty() ? scene.body.mesh : a.body},
+										 {"ellipsoid file", a.ellipsoids.empty() ? scene.body.ellipsoids : a.ellipsoids},
+										 {"garment mesh", scene.garment.mesh}});
+}
+
 #ifdef BODYFIT_HAVE_RENDER
 bodyfit::render::DrawMesh toDraw(const bodyfit::TriMesh& m, const Eigen::Vector3f& color, bool twoSided)
 {
@@ -154,13 +182,18 @@ int main(int argc, char** argv)
 		if (!args.show.empty())
 			scene.render.showEllipsoids = args.show == "ellipsoids";
 		for (const std::string* p : {&args.body, &args.ellipsoids})
-			if (!p->empty() && !std::filesystem::is_regular_file(*p))
-				throw InvalidInputError("file '" + *p + "' does not exist");
+			if (!p->empty() && !inputFileProblem(*p).empty())
+				throw InvalidInputError(*p + ": cannot open file: " + inputFileProblem(*p));
+		requireOutputs(args, scene);
 		std::cerr << "bodyfit-drape: loading body " << (args.body.empty() ? scene.body.mesh : args.body) << "\n";
 		body = loadBody(scene, args.body, args.ellipsoids);
 		for (const std::string& w : body.fitWarnings)
 			std::cerr << "bodyfit-drape: warning: fit: " << w << "\n";
 		sim = std::make_unique<DrapeSimulation>(scene, body);
+	}
+	catch (const bodyfit_cli::UsageError& e)
+	{
+		badInput(e.what());
 	}
 	catch (const FormatError& e)
 	{
@@ -173,6 +206,11 @@ int main(int argc, char** argv)
 	catch (const InvalidInputError& e)
 	{
 		badInput(e.what());
+	}
+	catch (const std::exception& e) // a bug: every bad input above is a typed error
+	{
+		std::cerr << "bodyfit-drape: internal error: " << e.what() << "\n";
+		return 1;
 	}
 
 	const int steps = args.steps >= 0 ? args.steps : scene.solver.steps;
@@ -203,7 +241,11 @@ int main(int argc, char** argv)
 			if (done == total)
 				std::fprintf(stderr, "\n");
 		};
+		const BlowUpWatch watch(*sim);
 		auto afterStep = [&](int k) {
+			const std::string blowUp = watch.check(*sim);
+			if (!blowUp.empty()) // a run must not end with exit 0 and plausible metrics after NaN or a launch
+				throw BlownUp("the simulation blew up at step " + std::to_string(k) + ": " + blowUp);
 			if (!args.frames.empty() && (k % scene.frameEvery == 0 || k == steps))
 				writeFrame(args.frames, *sim, frameIndex);
 		};
@@ -267,6 +309,11 @@ int main(int argc, char** argv)
 			std::cout << "picture    " << args.png << " (" << ro.width << "x" << ro.height << ", front | side)\n";
 		}
 #endif
+	}
+	catch (const BlownUp& e)
+	{
+		std::cerr << "\nbodyfit-drape: error: " << e.what() << "\n";
+		return 1;
 	}
 	catch (const std::exception& e)
 	{

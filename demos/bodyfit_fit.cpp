@@ -4,6 +4,7 @@
 #include "bodyfit/fitting/skinned_fit.h"
 #include "common/cli.h"
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -50,17 +51,18 @@ not a standing human is fitted as one region, with a warning. The largest connec
 used. Exit status: 0 ok, 2 bad input (one-line reason on stderr), 1 internal error.
 )";
 
+// Large values switch to %g instead of being cut off at the buffer's end (a 1e30 m error used to print 31 digits).
 std::string mm(double metres)
 {
-	char buf[32];
-	std::snprintf(buf, sizeof buf, "%.2f mm", metres * 1000.0);
+	char buf[64];
+	std::snprintf(buf, sizeof buf, std::abs(metres) < 1e9 ? "%.2f mm" : "%.6g mm", metres * 1000.0);
 	return buf;
 }
 
 std::string ms(double v)
 {
-	char buf[32];
-	std::snprintf(buf, sizeof buf, v < 10.0 ? "%.2f ms" : "%.1f ms", v);
+	char buf[64];
+	std::snprintf(buf, sizeof buf, v < 10.0 ? "%.2f ms" : v < 1e12 ? "%.1f ms" : "%.6g ms", v);
 	return buf;
 }
 
@@ -159,6 +161,14 @@ int main(int argc, char** argv)
 			throw UsageError("--segments: \"" + segmentsPath + "\" must end in .ply or .obj");
 		if (args.has("--no-segmentation") && args.has("--segments"))
 			throw UsageError("--segments needs the segmentation: drop --no-segmentation");
+		// Outputs: writable, and none of them the input or each other (checked before the load and the fit).
+		bodyfit_cli::requireWritableOutput(outPath, "-o");
+		if (args.has("--export-mesh"))
+			bodyfit_cli::requireWritableOutput(exportPath, "--export-mesh");
+		if (args.has("--segments"))
+			bodyfit_cli::requireWritableOutput(segmentsPath, "--segments");
+		bodyfit_cli::requireDistinctOutputs({{"-o", outPath}, {"--export-mesh", exportPath}, {"--segments", segmentsPath}},
+											{{"input mesh", meshPath}});
 
 		bodyfit::FitPipelineOptions options;
 		options.load.up = args.choice("--up", {"y", "z"}, "y") == "z" ? bodyfit::UpAxis::Z : bodyfit::UpAxis::Y;

@@ -31,11 +31,35 @@ cp tests/data/robust_*.json "$S/" 2>/dev/null || true
 rm -f "$S/robust_scene_unknown_key.json"
 S=$(seed_dir fuzz_scene)
 cp demos/scenes/*.json tests/data/robust_scene_unknown_key.json "$S/"
+# Nesting at and beyond kMaxJsonDepth (64; input_files.h), and the 100,000-level documents of issue 15 (200 KB:
+# hence -max_len 1 MiB below), so the fuzzers start next to the depth check instead of having to grow there.
+nested() { head -c "$1" /dev/zero | tr '\0' '['; head -c "$1" /dev/zero | tr '\0' ']'; }
+valid_fit='{"format": "bodyfit.ellipsoids", "version": 1, "ellipsoids": [{"region": "head", "center": [0, 1.6, 0], "rotation": [1, 0, 0, 0], "axes": [0.1, 0.12, 0.1]}]'
+for n in 63 64 100000; do
+	{ printf '%s, "extra": ' "$valid_fit"; nested $n; printf '}'; } >"$(seed_dir fuzz_ellipsoid_json)/seed_nested_$n.json"
+	{ printf '{"body": {"mesh": "/etc/passwd", "fit": {"x": '; nested $n; printf '}}, "collider": "none", "garment": {"type": "patch"}}'; } \
+		>"$(seed_dir fuzz_scene)/seed_nested_$n.json"
+done
+# Scenes at the physical ranges of scene.h (issue 15 classes 7 and 9): a looping body motion, the strongest wind.
+# The body mesh is a file every Linux system has, so that parsing gets past body.mesh (only existence is checked).
+S=$(seed_dir fuzz_scene)
+printf '%s' '{"body": {"mesh": "/etc/passwd"}, "collider": "none", "garment": {"type": "tube", "radius_m": 0.005, "length_m": 0.01, "segments": 314},
+ "effects": [{"type": "wind", "velocity": [50, -50, 50], "turbulence": 20}, {"type": "aerodynamics", "air_density": 5, "lift": 10, "drag": 10},
+ {"type": "body_motion", "loop": true, "keyframes": [{"t": 0}, {"t": 0.5, "translation": [0, 0, 5], "axis": [0, 1, 0], "angle_deg": 360}, {"t": 1}]}]}' \
+	>"$S/seed_ranges.json"
 S=$(seed_dir fuzz_mesh_file)
-# First byte = extension index in fuzz_mesh_file.cpp: 0 .obj, 1 .ply, 3 .glb, 9 .bin.
+# First byte = extension index in fuzz_mesh_file.cpp: 0 .obj, 1 .ply, 3 .glb, 4 .gltf, 9 .bin.
 for f in tests/data/*.obj; do { printf '\000'; cat "$f"; } >"$S/seed_$(basename "$f")"; done
 for f in tests/data/*.ply; do { printf '\001'; cat "$f"; } >"$S/seed_$(basename "$f")"; done
 for f in tests/data/*.glb; do { printf '\003'; cat "$f"; } >"$S/seed_$(basename "$f")"; done
+for f in tests/data/*.gltf; do { printf '\004'; cat "$f"; } >"$S/seed_$(basename "$f")"; done
+{ printf '\004{"asset": '; nested 100000; printf '}'; } >"$S/seed_nested.gltf"
+# OBJ statement counts at the caps of mesh_precheck.cpp (10,000 o/g/usemtl, 1,000 materials), and one over.
+{ printf '\000'; cat tests/data/tetra.obj; for i in $(seq 1 10001); do echo "o p$i"; done; } >"$S/seed_many_objects.obj"
+{ printf '\000'; cat tests/data/tetra.obj; for i in $(seq 1 1000); do echo "usemtl m$i"; done; } >"$S/seed_many_materials.obj"
+# A 20,000-node chain (overflowed assimp's stack; the check refuses it at 256 levels).
+{ printf '\004{"asset": {"version": "2.0"}, "nodes": ['; for i in $(seq 1 19999); do printf '{"children": [%d]}, ' "$i"; done
+  printf '{}]}'; } >"$S/seed_deep_nodes.gltf"
 { printf '\011'; head -c 256 tests/data/garbage.bin; } >"$S/seed_garbage.bin"
 S=$(seed_dir fuzz_repair_mesh)
 # 4 vertices, 4 faces, grid mode: a tetrahedron on the 0.1 grid; and the same in raw-double mode (mostly NaN-free).
@@ -53,7 +77,7 @@ for t in "${TARGETS[@]}"; do
 	set +e
 	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
 		LSAN_OPTIONS=suppressions="$PWD/fuzz/lsan.supp":print_suppressions=0 "$exe" "$BUILD/fuzz-corpus/$t" -max_total_time="$SECONDS_PER_TARGET" -seed="${FUZZ_SEED:-1}" -timeout=20 -rss_limit_mb=2048 \
-		-max_len=65536 -artifact_prefix="$art" -print_final_stats=1 >"$log" 2>&1
+		-max_len=1048576 -artifact_prefix="$art" -print_final_stats=1 >"$log" 2>&1
 	rc=$?
 	set -e
 	runs=$(grep -Eo 'stat::number_of_executed_units: *[0-9]+' "$log" | grep -Eo '[0-9]+$' || echo "?")

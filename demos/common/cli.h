@@ -16,8 +16,15 @@
 
 #include "bodyfit/fitting/errors.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
@@ -59,6 +66,20 @@ inline std::string oneLine(std::string s)
 	while (!s.empty() && s.back() == ' ')
 		s.pop_back();
 	return s;
+}
+
+/// A number for messages: the shortest text that reads back as `v` (1e+39, 0.001, 1278.228983290694).
+inline std::string formatNumber(double v)
+{
+	if (v == std::floor(v) && std::abs(v) < 1e15)
+		return std::to_string((long long)v);
+	for (int precision = 1;; ++precision)
+	{
+		char buf[40];
+		std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+		if (precision >= 17 || std::strtod(buf, nullptr) == v)
+			return buf;
+	}
 }
 
 /// Strict parse of a finite double: the whole text must be a number.
@@ -144,6 +165,9 @@ public:
 					if (i + 1 >= argc)
 						throw UsageError(arg + " needs a value (" + describe(*spec) + ")");
 					value = argv[++i];
+					// "-o --scale" is a forgotten value, not a file named --scale (a file of that name is "./--scale")
+					if (value.size() > 1 && value[0] == '-' && !isNumberLike(value))
+						throw UsageError(arg + " needs a value (" + describe(*spec) + "), got the option " + value);
 				}
 			}
 			else if (inlineValue)
@@ -241,6 +265,98 @@ private:
 	std::vector<std::string> positional_;
 	bool help_ = false;
 };
+
+/// Creates and removes `probe` (which must not exist): the one sure test that a file can be created there (access()
+/// says yes to root in /proc, where nothing can be created). "" on success, else the reason.
+inline std::string probeCreate(const std::string& probe)
+{
+	const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NONBLOCK | O_CLOEXEC, 0600);
+	if (fd < 0)
+		return std::strerror(errno);
+	::close(fd);
+	::unlink(probe.c_str());
+	return "";
+}
+
+/// Checks, before any work is done and leaving nothing behind, that `path` can be written as the output file
+/// (`directory` false) or directory (`directory` true) of `option`: an existing file must be writable and not a
+/// directory (a FIFO only with a reader: it would block), an existing directory must take a new file; a missing
+/// path is created and removed again (its directory exists) or needs its nearest existing ancestor to take a new
+/// file (the missing levels are created when writing).
+/// \throws UsageError "OPTION: cannot write 'PATH': <reason>".
+inline void requireWritableOutput(const std::string& path, const std::string& option, bool directory = false)
+{
+	auto fail = [&](const std::string& why) { throw UsageError(option + ": cannot write '" + path + "': " + why); };
+	if (path.empty())
+		throw UsageError(option + ": empty file name");
+	const std::string probeName = ".bodyfit_write_probe_" + std::to_string(long(::getpid()));
+	struct stat st
+	{
+	};
+	if (::stat(path.c_str(), &st) == 0)
+	{
+		if (S_ISDIR(st.st_mode) != directory)
+			fail(directory ? "it exists and is not a directory" : "it is a directory");
+		if (directory)
+		{
+			const std::string why = probeCreate((std::filesystem::path(path) / probeName).string());
+			if (!why.empty())
+				fail(why);
+			return;
+		}
+		const int fd = ::open(path.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC); // no O_TRUNC: nothing changes
+		if (fd < 0)
+			fail(errno == ENXIO ? "it is a FIFO without a reader" : std::strerror(errno));
+		::close(fd);
+		return;
+	}
+	if (errno != ENOENT)
+		fail(std::strerror(errno));
+	const std::filesystem::path parent = std::filesystem::absolute(path).parent_path();
+	if (!directory && ::stat(parent.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
+	{
+		const std::string why = probeCreate(path);
+		if (!why.empty())
+			fail(why);
+		return;
+	}
+	std::filesystem::path ancestor = parent;
+	while (::stat(ancestor.c_str(), &st) != 0 && errno == ENOENT && ancestor.has_relative_path())
+		ancestor = ancestor.parent_path();
+	if (::stat(ancestor.c_str(), &st) != 0)
+		fail(ancestor.string() + ": " + std::strerror(errno));
+	if (!S_ISDIR(st.st_mode))
+		fail("'" + ancestor.string() + "' is not a directory");
+	const std::string why = probeCreate((ancestor / probeName).string());
+	if (!why.empty())
+		fail("cannot create anything in '" + ancestor.string() + "': " + why);
+}
+
+/// Refuses an output that is one of the inputs (the same file, also through another name or a link) or the same
+/// path as an earlier output: `outputs` are (option, path) pairs, `inputs` (what, path) pairs; empty paths are
+/// skipped. \throws UsageError "OPTION: 'PATH' is the WHAT; refusing to overwrite it".
+inline void requireDistinctOutputs(const std::vector<std::pair<std::string, std::string>>& outputs,
+								   const std::vector<std::pair<std::string, std::string>>& inputs)
+{
+	auto same = [](const std::string& a, const std::string& b) {
+		std::error_code ec;
+		if (std::filesystem::equivalent(a, b, ec))
+			return true;
+		return std::filesystem::weakly_canonical(a, ec) == std::filesystem::weakly_canonical(b, ec) && !ec;
+	};
+	for (std::size_t i = 0; i < outputs.size(); ++i)
+	{
+		const auto& [option, path] = outputs[i];
+		if (path.empty())
+			continue;
+		for (const auto& [what, input] : inputs)
+			if (!input.empty() && same(path, input))
+				throw UsageError(option + ": '" + path + "' is the " + what + "; refusing to overwrite it");
+		for (std::size_t j = 0; j < i; ++j)
+			if (!outputs[j].second.empty() && same(path, outputs[j].second))
+				throw UsageError(option + ": '" + path + "' is also the output of " + outputs[j].first);
+	}
+}
 
 /// Creates the parent directory of an output file if it is missing. \throws UsageError naming the directory.
 inline void ensureParentDirectory(const std::string& path)

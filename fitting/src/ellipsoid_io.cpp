@@ -2,12 +2,15 @@
 #include "bodyfit/fitting/ellipsoid_io.h"
 
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/input_files.h"
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/skinned_fit.h"
 
 #include <nlohmann/json.hpp>
 
+#include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -77,6 +80,9 @@ public:
 	{
 		if (!v.is_number_integer())
 			fail(field, "must be an integer (got " + typeName(v) + ")");
+		if (v.is_number_unsigned() && v.get<unsigned long long>() > 2147483647ULL) // >= 2^63 is no long long
+			fail(field, "must be an integer >= " + std::to_string(minimum) + " and < 2^31 (got " +
+							std::to_string(v.get<unsigned long long>()) + ")");
 		const long long i = v.get<long long>();
 		if (i < minimum || i > 2147483647LL)
 			fail(field, "must be an integer >= " + std::to_string(minimum) + " (got " + std::to_string(i) + ")");
@@ -115,18 +121,53 @@ public:
 		return v;
 	}
 
+	/// The shortest text that reads back as d (1e-06, not 9.9999999999999995e-07).
 	static std::string format(double d)
 	{
-		std::ostringstream s;
-		s.precision(17);
-		s << d;
-		return s.str();
+		if (d == std::floor(d) && std::abs(d) < 1e15)
+			return std::to_string((long long)d);
+		for (int precision = 1;; ++precision)
+		{
+			std::ostringstream s;
+			s.precision(precision);
+			s << d;
+			if (precision >= 17 || std::strtod(s.str().c_str(), nullptr) == d)
+				return s.str();
+		}
 	}
 
 private:
 	static std::string typeName(const Json& v) { return v.type_name(); }
 	std::string name_;
 };
+
+/// "" for x in [lo, hi] (metres), else "must be in [lo, hi] m (got x)": the fit-file range of ellipsoid_io.h.
+std::string rangeProblem(double x, double lo, double hi)
+{
+	if (x >= lo && x <= hi)
+		return "";
+	return "must be in [" + Reader::format(lo) + ", " + Reader::format(hi) + "] m (got " + Reader::format(x) + ")";
+}
+
+/// The first centre coordinate or semi-axis of `fit` outside the fit-file range, as "ellipsoids[i].axes[k]: ...".
+std::string fitRangeProblem(const BodyFit& fit)
+{
+	for (std::size_t e = 0; e < fit.ellipsoids.size(); ++e)
+	{
+		const Ellipsoid& el = fit.ellipsoids[e].ellipsoid;
+		const std::string at = "ellipsoids[" + std::to_string(e) + "].";
+		for (int i = 0; i < 3; ++i)
+		{
+			const std::string c = rangeProblem(el.center[i], -kMaxFitCoordinate, kMaxFitCoordinate);
+			if (!c.empty())
+				return at + "center[" + std::to_string(i) + "]: " + c;
+			const std::string a = rangeProblem(el.radii[i], kMinFitAxis, kMaxFitAxis);
+			if (!a.empty())
+				return at + "axes[" + std::to_string(i) + "]: " + a;
+		}
+	}
+	return "";
+}
 
 FittedEllipsoid readEllipsoid(const Reader& r, const Json& e, const std::string& field)
 {
@@ -138,6 +179,10 @@ FittedEllipsoid readEllipsoid(const Reader& r, const Json& e, const std::string&
 
 	const std::vector<double> c = r.numbers(r.require(e, "center", field), field + ".center", 3);
 	f.ellipsoid.center = Eigen::Vector3d(c[0], c[1], c[2]);
+	for (int i = 0; i < 3; ++i)
+		if (const std::string problem = rangeProblem(c[std::size_t(i)], -kMaxFitCoordinate, kMaxFitCoordinate);
+			!problem.empty())
+			r.fail(field + ".center[" + std::to_string(i) + "]", problem);
 
 	const std::vector<double> q = r.numbers(r.require(e, "rotation", field), field + ".rotation", 4);
 	const Eigen::Quaterniond quat(q[0], q[1], q[2], q[3]); // [w, x, y, z]
@@ -148,8 +193,13 @@ FittedEllipsoid readEllipsoid(const Reader& r, const Json& e, const std::string&
 
 	const std::vector<double> a = r.numbers(r.require(e, "axes", field), field + ".axes", 3);
 	for (int i = 0; i < 3; ++i)
+	{
+		const std::string where = field + ".axes[" + std::to_string(i) + "]";
 		if (!(a[std::size_t(i)] > 0.0))
-			r.fail(field + ".axes[" + std::to_string(i) + "]", "must be > 0 (got " + Reader::format(a[std::size_t(i)]) + ")");
+			r.fail(where, "must be > 0 (got " + Reader::format(a[std::size_t(i)]) + ")");
+		if (const std::string problem = rangeProblem(a[std::size_t(i)], kMinFitAxis, kMaxFitAxis); !problem.empty())
+			r.fail(where, problem);
+	}
 	f.ellipsoid.radii = Eigen::Vector3d(a[0], a[1], a[2]);
 
 	auto optional = [&](const char* key, double& out) {
@@ -234,6 +284,10 @@ std::string toEllipsoidJson(const BodyFit& fit)
 
 void writeEllipsoidJson(const std::string& path, const BodyFit& fit)
 {
+	const std::string range = fitRangeProblem(fit);
+	if (!range.empty())
+		throw FormatError(path + ": not written, the fit is outside a fit file's range: " + range +
+						  " (a mesh in millimetres or centimetres needs a scale)");
 	const std::string text = toEllipsoidJson(fit);
 	std::ofstream out(path, std::ios::binary);
 	if (!out)
@@ -247,6 +301,9 @@ void writeEllipsoidJson(const std::string& path, const BodyFit& fit)
 BodyFit parseEllipsoidJson(const std::string& text, const std::string& name)
 {
 	const Reader r(name);
+	const std::string depth = jsonDepthProblem(text);
+	if (!depth.empty()) // before a tree is built: deep nesting overflows the stack of recursive JSON code
+		throw FormatError(name + ": not a usable JSON document: " + depth);
 	Json doc;
 	try
 	{
@@ -349,14 +406,7 @@ BodyFit parseEllipsoidJson(const std::string& text, const std::string& name)
 
 BodyFit readEllipsoidJson(const std::string& path)
 {
-	std::ifstream in(path, std::ios::binary);
-	if (!in)
-		throw FormatError(path + ": cannot open (missing or unreadable)");
-	std::ostringstream text;
-	text << in.rdbuf();
-	if (in.bad())
-		throw FormatError(path + ": read failed");
-	return parseEllipsoidJson(text.str(), path);
+	return parseEllipsoidJson(readJsonInputFile(path, "fit file"), path);
 }
 
 TriMesh ellipsoidMesh(const std::vector<FittedEllipsoid>& ellipsoids, int subdivisions, Eigen::MatrixX3d* colors)
@@ -423,9 +473,14 @@ TriMesh ellipsoidMesh(const std::vector<FittedEllipsoid>& ellipsoids, int subdiv
 
 void exportEllipsoidMesh(const std::string& path, const std::vector<FittedEllipsoid>& ellipsoids, int subdivisions)
 {
-	auto endsWith = [&](const char* ext) {
+	auto endsWith = [&](const char* ext) { // case-insensitive: X.OBJ passed the CLI check and then failed here
 		const std::string e(ext);
-		return path.size() >= e.size() && path.compare(path.size() - e.size(), e.size(), e) == 0;
+		if (path.size() < e.size())
+			return false;
+		for (std::size_t i = 0; i < e.size(); ++i)
+			if (std::tolower((unsigned char)path[path.size() - e.size() + i]) != e[i])
+				return false;
+		return true;
 	};
 	if (!endsWith(".obj") && !endsWith(".ply"))
 		throw InvalidInputError(path + ": ellipsoid mesh export needs a .obj or .ply file name");

@@ -1,11 +1,13 @@
 // The one fit pipeline: load -> repair -> segmentation (or the generic fallback) -> fit. See fit_pipeline.h.
 #include "bodyfit/fitting/fit_pipeline.h"
 
+#include "bodyfit/fitting/ellipsoid_io.h"
 #include "bodyfit/fitting/errors.h"
 
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <sstream>
 #include <utility>
 
 namespace bodyfit
@@ -46,10 +48,25 @@ FitPipelineTimings stageTimings(const BodyFit& fit, double loadMs, double repair
 	return t;
 }
 
+/// A fit file holds coordinates within kMaxFitCoordinate (ellipsoid_io.h): refuse, before fitting, a mesh whose fit
+/// could not be written (typically millimetres without a scale).
+void requireWithinFitRange(const LoadedMesh& loaded, const FitPipelineOptions& options, const std::string& name)
+{
+	const double reach = loaded.full.V.size() > 0 ? loaded.full.V.cwiseAbs().maxCoeff() : 0.0;
+	if (!(reach > kMaxFitCoordinate))
+		return;
+	std::ostringstream msg;
+	msg << name << ": the mesh reaches " << reach << " m from the origin (scale " << options.load.scale
+		<< "), a fit file holds coordinates within " << kMaxFitCoordinate
+		<< " m: millimetres need --scale 0.001, centimetres --scale 0.01";
+	throw InvalidInputError(msg.str());
+}
+
 /// Segmentation and fit of a loaded mesh; `loadMs` = 0 for an in-memory mesh. Fills everything but the total.
 FitPipelineResult fitLoaded(LoadedMesh loaded, const FitPipelineOptions& options, const std::string& sourceName,
 							double loadMs)
 {
+	requireWithinFitRange(loaded, options, sourceName);
 	FitPipelineResult result;
 	result.loaded = std::move(loaded);
 	const TriMesh& mesh = result.loaded.mesh;

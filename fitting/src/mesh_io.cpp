@@ -2,6 +2,7 @@
 #include "bodyfit/fitting/mesh_io.h"
 
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/input_files.h"
 
 #include <Eigen/Geometry>
 #include <assimp/Importer.hpp>
@@ -9,6 +10,7 @@
 #include <assimp/scene.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -96,93 +98,6 @@ double bboxDiagonal(const Eigen::MatrixX3d& V)
 	if (V.rows() == 0)
 		return 0.0;
 	return (V.colwise().maxCoeff() - V.colwise().minCoeff()).norm();
-}
-
-/// PLY header check before assimp sees the file: assimp 5.2's PLY reader loops forever on some malformed headers
-/// (found by fuzz_mesh_file: tests/data/robust_fuzz_ply_hang.ply, no end_header and garbled property lines), so a
-/// file that starts with the PLY magic must have a well-formed header: format, element NAME COUNT,
-/// property TYPE NAME, property list TYPE TYPE NAME, comment, obj_info, end_header (within the first 64 KiB).
-/// \throws MeshLoadError naming the line.
-void requireWellFormedPlyHeader(const std::string& path)
-{
-	std::ifstream in(path, std::ios::binary);
-	std::string line;
-	if (!std::getline(in, line))
-		return;
-	if (!line.empty() && line.back() == '\r')
-		line.pop_back();
-	if (line.compare(0, 3, "ply") != 0)
-		return; // not a PLY file (assimp decides what it is)
-	// assimp also takes "ply" followed by other bytes for PLY magic and can hang on the rest (fuzz_mesh_file:
-	// tests/data/robust_fuzz_ply_magic_hang.ply starts with "ply/"): the magic line must be exactly "ply".
-	if (line != "ply")
-		throw MeshLoadError(path + ": malformed PLY header, line 1: expected 'ply'");
-	static const char* const kTypes[] = {"char", "uchar", "short", "ushort", "int", "uint", "float", "double",
-										 "int8", "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"};
-	auto isType = [](const std::string& t) {
-		return std::find_if(std::begin(kTypes), std::end(kTypes), [&](const char* k) { return t == k; }) !=
-			   std::end(kTypes);
-	};
-	auto fail = [&](int lineNo, const std::string& why) {
-		throw MeshLoadError(path + ": malformed PLY header, line " + std::to_string(lineNo) + ": " + why);
-	};
-	std::size_t bytes = line.size() + 1;
-	bool haveFormat = false;
-	for (int lineNo = 2; std::getline(in, line); ++lineNo)
-	{
-		bytes += line.size() + 1;
-		if (bytes > 65536)
-			fail(lineNo, "no end_header in the first 64 KiB");
-		if (!line.empty() && line.back() == '\r')
-			line.pop_back();
-		std::vector<std::string> tok;
-		{
-			std::size_t i = 0;
-			while (i < line.size())
-			{
-				while (i < line.size() && (line[i] == ' ' || line[i] == '\t'))
-					++i;
-				std::size_t j = i;
-				while (j < line.size() && line[j] != ' ' && line[j] != '\t')
-					++j;
-				if (j > i)
-					tok.push_back(line.substr(i, j - i));
-				i = j;
-			}
-		}
-		if (tok.empty())
-			fail(lineNo, "empty line");
-		const std::string& key = tok[0];
-		if (key == "comment" || key == "obj_info")
-			continue;
-		if (key == "end_header")
-		{
-			if (!haveFormat)
-				fail(lineNo, "no format line");
-			return;
-		}
-		if (key == "format")
-		{
-			if (tok.size() != 3 || (tok[1] != "ascii" && tok[1] != "binary_little_endian" && tok[1] != "binary_big_endian"))
-				fail(lineNo, "expected 'format ascii|binary_little_endian|binary_big_endian VERSION'");
-			haveFormat = true;
-		}
-		else if (key == "element")
-		{
-			if (tok.size() != 3 || tok[2].find_first_not_of("0123456789") != std::string::npos || tok[2].size() > 10)
-				fail(lineNo, "expected 'element NAME COUNT'");
-		}
-		else if (key == "property")
-		{
-			const bool list = tok.size() == 5 && tok[1] == "list" && isType(tok[2]) && isType(tok[3]);
-			const bool scalar = tok.size() == 3 && isType(tok[1]);
-			if (!list && !scalar)
-				fail(lineNo, "expected 'property TYPE NAME' or 'property list TYPE TYPE NAME'");
-		}
-		else
-			fail(lineNo, "unknown keyword");
-	}
-	fail(0, "no end_header");
 }
 
 } // namespace
@@ -384,15 +299,17 @@ LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const st
 
 const aiScene* readCheckedScene(Assimp::Importer& importer, const std::string& path, unsigned int postProcessing)
 {
+	// Only regular files (a FIFO blocks open forever, a directory fails deep inside assimp), and the format checks
+	// of input_files.h for what assimp 5.2 cannot read safely.
+	const std::string problem = inputFileProblem(path);
+	if (!problem.empty())
+		throw MeshLoadError(path + ": cannot open file: " + problem);
 	{
-		std::ifstream probe(path, std::ios::binary);
-		if (!probe)
-			throw MeshLoadError(path + ": cannot open file");
-		probe.seekg(0, std::ios::end);
+		std::ifstream probe(path, std::ios::binary | std::ios::ate);
 		if (probe.tellg() <= 0)
 			throw MeshLoadError(path + ": file is empty");
 	}
-	requireWellFormedPlyHeader(path);
+	requireSafeMeshFile(path);
 	// Points and lines are removed; we only want triangles.
 	importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
 	// Two phases, so that corrupt data never reaches assimp's post-processing steps (which crash or abort on it):
@@ -473,7 +390,9 @@ LoadedMesh loadTriMesh(const std::string& path, const LoadOptions& options)
 
 void saveTriMesh(const std::string& path, const TriMesh& mesh, const Eigen::MatrixX3d* colors)
 {
-	const bool ply = path.size() >= 4 && path.compare(path.size() - 4, 4, ".ply") == 0;
+	std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
+	std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+	const bool ply = ext == ".ply"; // X.PLY too (it used to get OBJ text)
 	std::ofstream out(path);
 	if (!out)
 		throw MeshLoadError(path + ": cannot open for writing");

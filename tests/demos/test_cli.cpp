@@ -112,7 +112,7 @@ TEST_CASE("cli: bad arguments and bad files exit 2 with a one-line reason", "[fi
 	checkBadInput(quoted(bodyfit_test::dataPath("empty.obj")) + out, "empty");
 	// An output directory that cannot be created (its parent is a regular file).
 	std::ofstream(scratch() / "a_file") << "x";
-	checkBadInput(body + " -o " + quoted((scratch() / "a_file" / "sub" / "fit.json").string()), "cannot create");
+	checkBadInput(body + " -o " + quoted((scratch() / "a_file" / "sub" / "fit.json").string()), "-o: cannot write");
 }
 
 TEST_CASE("cli: a fit writes readable JSON and the ellipsoid mesh, creating the directory", "[fitting][cli]")

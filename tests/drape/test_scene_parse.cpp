@@ -40,7 +40,8 @@ json validDocument()
 			{"type": "pin", "select": "edge", "side": "+z", "attach": "body"},
 			{"type": "body_motion", "pivot": [0, 1, 0], "loop": true, "keyframes": [
 				{"t": 0, "translation": [0, 0, 0]},
-				{"t": 1, "translation": [0, 0, 1], "axis": [0, 1, 0], "angle_deg": 30}]}
+				{"t": 1, "translation": [0, 0, 1], "axis": [0, 1, 0], "angle_deg": 30},
+				{"t": 2, "translation": [0, 0, 0]}]}
 		],
 		"render": {"width": 640, "height": 480, "show": "ellipsoids"},
 		"output": {"frame_every": 5, "sample_every": 3}
@@ -94,7 +95,7 @@ TEST_CASE("a scene with every section parses to the given values", "[scene]")
 	CHECK(s.effects.pin->side == "+z");
 	CHECK(s.effects.pin->toBody);
 	REQUIRE(s.effects.bodyMotion);
-	CHECK(s.effects.bodyMotion->keyframes.size() == 2);
+	CHECK(s.effects.bodyMotion->keyframes.size() == 3); // a loop ends where it starts
 	CHECK(s.effects.bodyMotion->loop);
 	CHECK(s.render.showEllipsoids);
 	CHECK(s.frameEvery == 5);
@@ -280,7 +281,7 @@ TEST_CASE("structural errors name the key", "[scene]")
 
 TEST_CASE("loadScene names the file for unreadable or malformed JSON", "[scene]")
 {
-	CHECK_THROWS_WITH(loadScene("/no/such/scene.json"), "/no/such/scene.json: cannot open scene file");
+	CHECK_THROWS_WITH(loadScene("/no/such/scene.json"), "/no/such/scene.json: cannot open scene file: does not exist");
 	const std::string path = (std::filesystem::temp_directory_path() / "bodyfit_bad_scene.json").string();
 	{
 		std::ofstream out(path);

@@ -58,7 +58,7 @@ std::string jsonError(const std::string& file)
 
 TEST_CASE("robust catalogue: unreadable mesh files are MeshLoadError naming the file", "[robust][inputs][mesh]")
 {
-	CHECK_THAT(meshError("robust_does_not_exist.obj"), Catch::EndsWith(": cannot open file"));
+	CHECK_THAT(meshError("robust_does_not_exist.obj"), Catch::EndsWith(": cannot open file: does not exist"));
 	CHECK_THAT(meshError("empty.obj"), Catch::EndsWith(": file is empty"));
 	// Truncated files: assimp either rejects them (the reason is appended) or reads nothing usable.
 	CHECK_THAT(meshError("truncated.obj"), Catch::Contains("truncated.obj: "));

@@ -1,6 +1,9 @@
 #include "bodyfit/drape/scene.h"
 
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/input_files.h"
+
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
@@ -109,7 +112,10 @@ public:
 	int checkInteger(const json& v, const std::string& where, int lo, int hi) const
 	{
 		if (!v.is_number_integer() && !v.is_number_unsigned())
-			fail(where, std::string("expected an integer, got ") + typeName(v));
+			fail(where, std::string("expected an integer, got ") + (v.is_number() ? "a non-integral number " + v.dump() : typeName(v)));
+		if (v.is_number_unsigned() && v.get<unsigned long long>() > (unsigned long long)hi) // >= 2^63: no long long
+			fail(where, "value " + std::to_string(v.get<unsigned long long>()) + " is outside [" + std::to_string(lo) +
+							", " + std::to_string(hi) + "]");
 		const long long x = v.get<long long>();
 		if (x < lo || x > hi)
 			fail(where, "value " + std::to_string(x) + " is outside [" + std::to_string(lo) + ", " +
@@ -156,12 +162,14 @@ public:
 		if (p.is_relative())
 			p = std::filesystem::path(baseDir_) / p;
 		p = p.lexically_normal();
-		if (!std::filesystem::is_regular_file(p))
-			fail(keyPath(key), "file '" + p.string() + "' does not exist");
+		const std::string problem = inputFileProblem(p.string());
+		if (!problem.empty())
+			fail(keyPath(key), "file '" + p.string() + "' " + problem);
 		return p.string();
 	}
 
-	Eigen::Vector3d vec3(const std::string& key, const Eigen::Vector3d& def, double lo = -1e6, double hi = 1e6)
+	Eigen::Vector3d vec3(const std::string& key, const Eigen::Vector3d& def, double lo = -kMaxSceneCoordinate,
+						 double hi = kMaxSceneCoordinate)
 	{
 		if (!has(key))
 			return def;
@@ -228,6 +236,14 @@ private:
 	std::set<std::string> allowed_;
 };
 
+/// A cloth edge shorter than kMinClothEdge: float rounding of the spring lengths (edges of 1e-9 m made NaN nodes).
+void requireClothEdge(ObjectReader& r, const std::string& key, double edge, const std::string& formula)
+{
+	if (edge < kMinClothEdge)
+		r.fail(r.keyPath(key), formula + " = " + formatNumber(edge) + " m per cloth edge, less than " +
+								   formatNumber(kMinClothEdge) + " m");
+}
+
 BodySpec parseBody(ObjectReader r)
 {
 	BodySpec b;
@@ -242,6 +258,12 @@ BodySpec parseBody(ObjectReader r)
 		const json& f = r.get("fit");
 		if (!f.is_object())
 			r.fail(r.keyPath("fit"), std::string("expected an object of fit parameters, got ") + typeName(f));
+		for (auto it = f.begin(); it != f.end(); ++it) // fit parameters are plain values (checked in loadBody)
+			if (it.value().is_structured())
+				r.fail(r.keyPath("fit") + "." + it.key(), std::string("expected a number or true/false, got ") +
+															   typeName(it.value()));
+		if (f.contains("max_ellipsoids")) // a count: 0.5 used to reach the fitter as 0 (no key named), 1.9 as 1
+			r.checkInteger(f["max_ellipsoids"], r.keyPath("fit") + ".max_ellipsoids", 1, 10000);
 		b.fit = f;
 	}
 	b.up = r.string("up", "y", {"y", "z"}) == "z" ? UpAxis::Z : UpAxis::Y;
@@ -277,8 +299,10 @@ GarmentSpec parseGarment(ObjectReader r)
 	if (type == "patch")
 	{
 		g.type = GarmentType::Patch;
-		g.size = r.vec2("size_m", g.size, 0.0, 100.0, true);
+		g.size = r.vec2("size_m", g.size, kMinGarmentSize, 100.0, false);
 		g.resolution = r.ivec2("resolution", g.resolution, 2, 512);
+		for (int i = 0; i < 2; ++i)
+			requireClothEdge(r, "size_m", g.size[i] / (g.resolution[i] - 1), "size_m[" + std::to_string(i) + "] / (resolution[" + std::to_string(i) + "] - 1)");
 		g.center = r.vec3("center", g.center);
 	}
 	else if (type == "skirt" || type == "tights")
@@ -289,9 +313,9 @@ GarmentSpec parseGarment(ObjectReader r)
 		{
 			const json& s = r.get("scale");
 			if (s.is_number())
-				g.scale.setConstant(r.checkNumber(s, r.keyPath("scale"), 0.0, 100.0, true));
+				g.scale.setConstant(r.checkNumber(s, r.keyPath("scale"), kMinGarmentScale, 100.0));
 			else
-				g.scale = r.vec3("scale", g.scale, 1e-6, 100.0);
+				g.scale = r.vec3("scale", g.scale, kMinGarmentScale, 100.0);
 		}
 		if (r.has("scale_center"))
 			g.scaleCenter = r.vec3("scale_center", Eigen::Vector3d::Zero());
@@ -300,10 +324,12 @@ GarmentSpec parseGarment(ObjectReader r)
 	else
 	{
 		g.type = GarmentType::Tube;
-		g.radius = r.number("radius_m", g.radius, 0.0, 10.0, true);
-		g.length = r.number("length_m", g.length, 0.0, 100.0, true);
+		g.radius = r.number("radius_m", g.radius, kMinGarmentSize / 2, 10.0);
+		g.length = r.number("length_m", g.length, kMinGarmentSize, 100.0);
 		g.segments = r.integer("segments", g.segments, 3, 1024);
 		g.rings = r.integer("rings", g.rings, 2, 1024);
+		requireClothEdge(r, "segments", 2.0 * M_PI * g.radius / g.segments, "2 pi radius_m / segments");
+		requireClothEdge(r, "rings", g.length / (g.rings - 1), "length_m / (rings - 1)");
 		g.center = r.vec3("center", g.center);
 	}
 	r.finish();
@@ -316,7 +342,7 @@ MaterialSpec parseMaterial(ObjectReader r)
 	m.stretch = r.number("stretch", m.stretch, 0.0, 1.0, true);
 	m.bending = r.number("bending", m.bending, 0.0, 1.0);
 	m.damping = r.number("damping", m.damping, 0.0, 0.99);
-	m.mass = r.number("mass_kg", m.mass, 0.0, 1e4, true);
+	m.mass = r.number("mass_kg", m.mass, 0.001, 100.0);
 	m.margin = r.number("margin_m", m.margin, 0.0, 0.1, true);
 	r.finish();
 	return m;
@@ -333,7 +359,26 @@ SolverSpec parseSolver(ObjectReader r)
 	return s;
 }
 
-BodyMotionSpec parseBodyMotion(ObjectReader& r)
+/// The body's speed between two keyframes: translation and rotation (angle between the two orientations).
+void requirePhysicalKeyframeStep(ObjectReader& k, const Keyframe& a, const Keyframe& b, double dt)
+{
+	const double gap = b.time - a.time;
+	if (gap < dt)
+		k.fail(k.keyPath("t"), "keyframes " + formatNumber(gap) + " s apart, less than one step (solver.dt " +
+								   formatNumber(dt) + " s): the body would jump");
+	const double speed = (b.translation - a.translation).norm() / gap;
+	if (speed > kMaxBodySpeed)
+		k.fail(k.keyPath("t"), "the body would move at " + formatNumber(speed) + " m/s from the previous keyframe (at most " +
+								   formatNumber(kMaxBodySpeed) + " m/s)");
+	const Eigen::Quaterniond qa(Eigen::AngleAxisd(a.angleDeg * M_PI / 180.0, a.axis));
+	const Eigen::Quaterniond qb(Eigen::AngleAxisd(b.angleDeg * M_PI / 180.0, b.axis));
+	const double turn = qa.angularDistance(qb) * 180.0 / M_PI / gap;
+	if (turn > kMaxBodyTurnRate)
+		k.fail(k.keyPath("t"), "the body would turn at " + formatNumber(turn) + " deg/s from the previous keyframe (at most " +
+								   formatNumber(kMaxBodyTurnRate) + " deg/s)");
+}
+
+BodyMotionSpec parseBodyMotion(ObjectReader& r, double dt)
 {
 	BodyMotionSpec m;
 	const json& keys = r.get("keyframes");
@@ -356,6 +401,8 @@ BodyMotionSpec parseBodyMotion(ObjectReader& r)
 			f.axis = Eigen::Vector3d::UnitY();
 		if (!m.keyframes.empty() && f.time <= m.keyframes.back().time)
 			k.fail(k.keyPath("t"), "keyframe times must increase strictly");
+		if (!m.keyframes.empty())
+			requirePhysicalKeyframeStep(k, m.keyframes.back(), f, dt);
 		k.finish();
 		m.keyframes.push_back(f);
 	}
@@ -364,6 +411,17 @@ BodyMotionSpec parseBodyMotion(ObjectReader& r)
 	m.loop = r.boolean("loop", false);
 	if (m.loop && m.keyframes.back().time <= 0.0)
 		r.fail(r.keyPath("loop"), "a looping motion needs a last keyframe time > 0");
+	if (m.loop) // the path wraps from the last pose to the first in no time: they must be the same pose
+	{
+		const Keyframe &first = m.keyframes.front(), &last = m.keyframes.back();
+		const double jump = (last.translation - first.translation).norm();
+		const double turn = Eigen::Quaterniond(Eigen::AngleAxisd(first.angleDeg * M_PI / 180.0, first.axis))
+								.angularDistance(Eigen::Quaterniond(Eigen::AngleAxisd(last.angleDeg * M_PI / 180.0, last.axis))) *
+							180.0 / M_PI;
+		if (jump > 1e-6 || turn > 1e-6)
+			r.fail(r.keyPath("loop"), "a looping motion must end where it starts: the last keyframe is " + formatNumber(jump) +
+										  " m and " + formatNumber(turn) + " deg from the first");
+	}
 	return m;
 }
 
@@ -385,19 +443,19 @@ void parseEffects(const json& list, const std::string& where, Scene& scene, cons
 		if (type == "gravity")
 		{
 			GravitySpec g;
-			g.acceleration = r.vec3("acceleration", g.acceleration, -1000.0, 1000.0);
+			g.acceleration = r.vec3("acceleration", g.acceleration, -100.0, 100.0); // 10 g
 			e.gravity = g;
 		}
 		else if (type == "wind")
 		{
 			WindSpec w;
-			w.velocity = r.vec3("velocity", w.velocity, -200.0, 200.0);
-			w.turbulence = r.number("turbulence", w.turbulence, 0.0, 200.0);
+			w.velocity = r.vec3("velocity", w.velocity, -kMaxWindSpeed, kMaxWindSpeed);
+			w.turbulence = r.number("turbulence", w.turbulence, 0.0, kMaxTurbulence);
 			w.lengthScale = r.number("length_scale_m", w.lengthScale, 0.0, 100.0, true);
 			w.timeScale = r.number("time_scale_s", w.timeScale, 0.0, 1000.0, true);
 			w.octaves = r.integer("octaves", w.octaves, 1, 6);
 			w.seed = unsigned(r.integer("seed", int(w.seed), 0, 1 << 30));
-			w.drag = r.number("drag", w.drag, 0.0, 100.0);
+			w.drag = r.number("drag", w.drag, 0.0, kMaxAeroCoefficient);
 			e.wind = w;
 		}
 		else if (type == "aerodynamics")
@@ -406,9 +464,9 @@ void parseEffects(const json& list, const std::string& where, Scene& scene, cons
 			a.model = r.string("model", a.model,
 							   {"V_Point", "V_TwoSided", "V_TwoSidedLiftDrag", "V_OneSided", "F_TwoSided",
 								"F_TwoSidedLiftDrag", "F_OneSided"});
-			a.lift = r.number("lift", a.lift, 0.0, 100.0);
-			a.drag = r.number("drag", a.drag, 0.0, 100.0);
-			a.airDensity = r.number("air_density", a.airDensity, 0.0, 2000.0, true);
+			a.lift = r.number("lift", a.lift, 0.0, kMaxAeroCoefficient);
+			a.drag = r.number("drag", a.drag, 0.0, kMaxAeroCoefficient);
+			a.airDensity = r.number("air_density", a.airDensity, 0.0, kMaxAirDensity, true);
 			e.aerodynamics = a;
 		}
 		else if (type == "friction")
@@ -458,7 +516,7 @@ void parseEffects(const json& list, const std::string& where, Scene& scene, cons
 		}
 		else
 		{
-			e.bodyMotion = parseBodyMotion(r);
+			e.bodyMotion = parseBodyMotion(r, scene.solver.dt);
 		}
 		r.finish();
 	}
@@ -574,21 +632,30 @@ Scene parseScene(const nlohmann::json& document, const std::string& path)
 	return scene;
 }
 
-Scene loadScene(const std::string& path)
+Scene parseSceneText(const std::string& text, const std::string& path)
 {
-	std::ifstream in(path);
-	if (!in)
-		throw FormatError(path + ": cannot open scene file");
+	const std::string depth = jsonDepthProblem(text);
+	if (!depth.empty()) // before a tree is built: deep nesting overflows the stack of recursive JSON code
+		throw FormatError(path + ": not a usable JSON document: " + depth);
 	json document;
 	try
 	{
-		document = json::parse(in, nullptr, true, /*ignore_comments=*/true);
+		document = json::parse(text, nullptr, true, /*ignore_comments=*/true);
 	}
 	catch (const json::parse_error& e)
 	{
 		throw FormatError(path + ": invalid JSON at byte " + std::to_string(e.byte) + ": " + e.what());
 	}
+	catch (const json::exception& e) // e.g. out_of_range.406, a number too large for a double
+	{
+		throw FormatError(path + ": invalid JSON: " + e.what());
+	}
 	return parseScene(document, path);
+}
+
+Scene loadScene(const std::string& path)
+{
+	return parseSceneText(readJsonInputFile(path, "scene file"), path);
 }
 
 } // namespace bodyfit::drape

@@ -27,10 +27,19 @@ namespace bodyfit
 constexpr const char* kEllipsoidFormat = "bodyfit.ellipsoids";
 constexpr int kEllipsoidFormatVersion = 1;
 
+/// The geometry a fit file holds (metres): every centre coordinate within kMaxFitCoordinate of the origin, every
+/// semi-axis in [kMinFitAxis, kMaxFitAxis]. Bodies are 0.1-3 m; at 1000 m a float (Bullet's btScalar) still has a
+/// spacing of 0.06 mm, while 1e39 is no float at all (inf) and 1e-40 rounds to 0. Read and written files are both
+/// held to it, so a fit that could not be read back (a millimetre mesh fitted without --scale) is never written.
+constexpr double kMaxFitCoordinate = 1000.0;
+constexpr double kMinFitAxis = 1e-6;
+constexpr double kMaxFitAxis = 1000.0;
+
 /// JSON text of `fit` (2-space indented).
 std::string toEllipsoidJson(const BodyFit& fit);
 
-/// Writes toEllipsoidJson(fit) to `path` (the directory must exist). \throws FormatError if it cannot be written.
+/// Writes toEllipsoidJson(fit) to `path` (the directory must exist). \throws FormatError, before opening the file, if
+/// an ellipsoid is outside the range above (naming it), or if the file cannot be written.
 void writeEllipsoidJson(const std::string& path, const BodyFit& fit);
 
 /// Parses and validates an ellipsoid-set document. `name` is used in error messages (usually the file path).

@@ -76,7 +76,8 @@ void requireUsable(const TriMesh& mesh, const std::string& name = "<mesh>");
 /// Component id per vertex (0 = the component with the most vertices), and the number of components.
 std::vector<int> connectedComponents(const TriMesh& mesh, int* count = nullptr);
 
-/// Writes an OBJ or PLY (by extension) with optional per-vertex colours (#V by 3, 0..1). Throws MeshLoadError.
+/// Writes a PLY (extension .ply, any case) or else an OBJ, with optional per-vertex colours (#V by 3, 0..1).
+/// Throws MeshLoadError.
 void saveTriMesh(const std::string& path, const TriMesh& mesh, const Eigen::MatrixX3d* colors = nullptr);
 
 const char* toString(UpAxis up);

@@ -19,6 +19,20 @@
 namespace bodyfit::drape
 {
 
+/// Physical ranges of scene values (docs/ROBUSTNESS.md 7.9-7.10). Values outside them are FormatErrors: they used
+/// to be accepted and produced NaN nodes (a patch at 1e6 m, a 1e-9 m patch or tube) or launched the cloth (200 m/s
+/// wind with air 2,000 times denser than air, keyframes 1e-7 s apart, a loop that jumps).
+constexpr double kMaxSceneCoordinate = 1000.0; ///< positions and offsets (m); as a fit file's (ellipsoid_io.h)
+constexpr double kMinGarmentSize = 0.01;       ///< patch sides, tube length (m); tube radius half of it
+constexpr double kMinGarmentScale = 0.01;      ///< skirt/tights scale factor
+constexpr double kMinClothEdge = 1e-4;         ///< generated cloth edge length (m)
+constexpr double kMaxWindSpeed = 50.0;         ///< per component (m/s); hurricane force is 33 m/s
+constexpr double kMaxTurbulence = 20.0;        ///< noise amplitude (m/s per component)
+constexpr double kMaxAirDensity = 5.0;         ///< kg/m^3 (air: 1.2)
+constexpr double kMaxAeroCoefficient = 10.0;   ///< lift, drag (flat plate: about 1.2)
+constexpr double kMaxBodySpeed = 10.0;         ///< keyframed body translation (m/s; a sprinter)
+constexpr double kMaxBodyTurnRate = 720.0;     ///< keyframed body rotation (deg/s)
+
 enum class ColliderKind
 {
 	Ellipsoids,         ///< our analytic ellipsoid-compound cloth collider (bullet_ext)
@@ -199,8 +213,12 @@ struct Scene
 	int sampleEvery = 10;    ///< inside-body metric sampled every this many steps (and at the end)
 };
 
-/// Reads and validates a scene file. \throws FormatError naming the file and the key.
+/// Reads and validates a scene file (a regular file of at most kMaxJsonFileBytes, nesting at most kMaxJsonDepth
+/// levels; input_files.h). \throws FormatError naming the file and the key.
 Scene loadScene(const std::string& path);
+
+/// Parses (comments allowed) and validates scene text, with the depth check of loadScene; `path` as in parseScene.
+Scene parseSceneText(const std::string& text, const std::string& path);
 
 /// Validates an already-parsed document; `path` names the file in messages and anchors relative paths.
 Scene parseScene(const nlohmann::json& document, const std::string& path);
