@@ -336,7 +336,7 @@ BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoft
 	return true;
 }
 
-btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry,
+BT_ELLIPSOID_ALWAYS_INLINE btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry,
 													  const btVector3& q, int nc, const Substep& substep)
 {
 	btEntryPlacement placed;
