@@ -323,9 +323,10 @@ private:
 
 BT_ELLIPSOID_ALWAYS_INLINE int btEllipsoidWorldCache::PathQuery::candidates(const btVector3& q, const btVector3& x, int* out) const
 {
-	btVector3 boxMin = x, boxMax = x;
-	boxMin.setMin(q);
-	boxMax.setMax(q);
+	// The path box, as btVector3::setMin / setMax would give it, written as selects (branch-free min/max; the
+	// branches of btSetMin are a coin toss per node).
+	btVector3 boxMin(q.x() < x.x() ? q.x() : x.x(), q.y() < x.y() ? q.y() : x.y(), q.z() < x.z() ? q.z() : x.z());
+	btVector3 boxMax(x.x() < q.x() ? q.x() : x.x(), x.y() < q.y() ? q.y() : x.y(), x.z() < q.z() ? q.z() : x.z());
 	boxMin -= m_radiusBox;
 	boxMax += m_radiusBox;
 	if (!boxesOverlap(boxMin, boxMax, m_unionMin, m_unionMax))
