@@ -4,7 +4,7 @@ The response follows Gong et al. 2018, sec. 4: all ellipsoids hit along the node
 point nearest the start position wins (which removes the paper's Figure 6 cases 1-3), the node goes there.
 This file: the collider's lifecycle (install, body pose per substep, the solver that drives it) and the node loop
 that runs the phases: broad phase btEllipsoidWorldCache::PathQuery (btEllipsoidCompoundShape.cpp), narrow phase
-btEarliestEntry (btEllipsoidNarrowPhase.h), response (btEllipsoidClothResponse.cpp), union push-out
+btEarliestEntry (btEllipsoidNarrowPhase.h), response (btEllipsoidClothResponse.h), union push-out
 (btEllipsoidUnionPushOut.cpp).
 */
 
@@ -336,7 +336,7 @@ BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoft
 	return true;
 }
 
-btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry,
+BT_ELLIPSOID_ALWAYS_INLINE btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry,
 													  const btVector3& q, int nc, const Substep& substep)
 {
 	btEntryPlacement placed;

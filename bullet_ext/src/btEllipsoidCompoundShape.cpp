@@ -553,6 +553,11 @@ btEllipsoidWorldCache::PathQuery::PathQuery(const btEllipsoidWorldCache& cache, 
 {
 	for (int k = 0; k < 3; ++k)
 		m_dims[k] = cache.m_dims[k];
+	if (m_count == 0)
+	{
+		m_unionMin.setValue(SIMD_INFINITY, SIMD_INFINITY, SIMD_INFINITY);
+		m_unionMax = -m_unionMin;
+	}
 	const btScalar invCell = cache.m_invCell;
 	m_radiusBox.setValue(radius, radius, radius);
 	m_radiusCells = m_radiusBox * invCell;

@@ -31,7 +31,7 @@ struct btUnitBallQuadratic
 	btUnitBallQuadratic(btScalar a, btScalar b, btScalar c) : m_a(a), m_b(b), m_c(c) {}
 
 	/// The quadratic of the whitened line u0 + s d.
-	static btUnitBallQuadratic ofLine(const btVector3& u0, const btVector3& d)
+	static btUnitBallQuadratic ofLine(const btVector3 &u0, const btVector3 &d)
 	{
 		return btUnitBallQuadratic(d.length2(), u0.dot(d), u0.length2() - btScalar(1));
 	}
@@ -43,7 +43,7 @@ struct btUnitBallQuadratic
 	btScalar entryRoot(btScalar disc) const { return m_c / (btSqrt(disc) - m_b); }
 
 	/// Both roots s0 <= s1 (needs m_a > 0 and disc >= 0): the chord of the ball along the line.
-	void roots(btScalar disc, btScalar& s0, btScalar& s1) const
+	void roots(btScalar disc, btScalar &s0, btScalar &s1) const
 	{
 		const btScalar sq = btSqrt(disc);
 		s1 = (-m_b + sq) / m_a;
@@ -73,7 +73,7 @@ inline btScalar btSegmentEntry(btScalar uq0, btScalar uq1, btScalar uq2, btScala
 
 /// Whitened coordinates u = W (p - c) of a point for one packed record {c, columns of W}
 /// (btEllipsoidWorldCache::getPackedRecords), scalar arithmetic.
-inline void btWhitenPacked(const btScalar* pk, btScalar px, btScalar py, btScalar pz, btScalar u[3])
+inline void btWhitenPacked(const btScalar *pk, btScalar px, btScalar py, btScalar pz, btScalar u[3])
 {
 	const btScalar dx = px - pk[0], dy = py - pk[1], dz = pz - pk[2];
 	u[0] = pk[4] * dx + pk[8] * dy + pk[12] * dz;
@@ -82,7 +82,8 @@ inline void btWhitenPacked(const btScalar* pk, btScalar px, btScalar py, btScala
 }
 
 /// Smallest zeta = |W (p - c)|^2 at p over the listed packed records; \param which receives its index or -1.
-inline btScalar btMinZetaPacked(const btScalar* packed, const int* candidates, int count, const btVector3& p, int* which)
+inline btScalar btMinZetaPacked(const btScalar *packed, const int *candidates, int count, const btVector3 &p,
+								int *which)
 {
 	const btScalar px = p.x(), py = p.y(), pz = p.z();
 	btScalar best = SIMD_INFINITY;
@@ -111,7 +112,7 @@ struct btPathEnds
 #ifdef BT_ELLIPSOID_SSE_PATH
 	__m128 m_qVec, m_xVec;
 #endif
-	btPathEnds(const btVector3& q, const btVector3& x)
+	btPathEnds(const btVector3 &q, const btVector3 &x)
 	{
 		m_q[0] = q.x(), m_q[1] = q.y(), m_q[2] = q.z();
 		m_x[0] = x.x(), m_x[1] = x.y(), m_x[2] = x.z();
@@ -134,7 +135,7 @@ inline __m128 btWhitenLanes(__m128 p, __m128 centre, __m128 col0, __m128 col1, _
 #endif
 
 /// Both ends of a node path in the whitened coordinates of one packed record.
-inline void btWhitenPath(const btPathEnds& ends, const btScalar* pk, btScalar uq[3], btScalar ux[3])
+inline void btWhitenPath(const btPathEnds &ends, const btScalar *pk, btScalar uq[3], btScalar ux[3])
 {
 #ifdef BT_ELLIPSOID_SSE_PATH
 	const __m128 centre = _mm_loadu_ps(pk);
@@ -153,18 +154,18 @@ inline void btWhitenPath(const btPathEnds& ends, const btScalar* pk, btScalar uq
 /// Result of the path test of one node over its candidates.
 struct btPathEntry
 {
-	int m_ellipsoid;       ///< the earliest entered ellipsoid (nearest q), -1 if the path enters none
-	btScalar m_t;          ///< its entry parameter along q -> x (kNoEntry if none)
-	btVector3 m_u;         ///< the entry point in that ellipsoid's whitened coordinates
-	bool m_startInside;    ///< q is inside some candidate (the path test does not apply then)
+	int m_ellipsoid;	   ///< the earliest entered ellipsoid (nearest q), -1 if the path enters none
+	btScalar m_t;		   ///< its entry parameter along q -> x (kNoEntry if none)
+	btVector3 m_u;		   ///< the entry point in that ellipsoid's whitened coordinates
+	bool m_startInside;	   ///< q is inside some candidate (the path test does not apply then)
 	btScalar m_minZetaEnd; ///< smallest zeta at x over the candidates
 };
 
 /// The path test of one node: for every candidate the entry parameter t of q -> x (kNoEntry for none or a start
 /// inside it, written to tvals[j]); the earliest entry in [0, 1] wins (the first listed on exact ties). An end inside
 /// whose root rounding lost counts as an entry at t = 1.
-BT_ELLIPSOID_ALWAYS_INLINE void btEarliestEntry(const btScalar* packed, const int* cand, int nc, const btPathEnds& ends, btScalar* tvals,
-							btPathEntry& out)
+BT_ELLIPSOID_ALWAYS_INLINE void btEarliestEntry(const btScalar *packed, const int *cand, int nc, const btPathEnds &ends,
+												btScalar *tvals, btPathEntry &out)
 {
 	// Locals in the loop (out is written once at the end: stores to tvals could alias its fields).
 	int best = -1;
@@ -206,7 +207,7 @@ BT_ELLIPSOID_ALWAYS_INLINE void btEarliestEntry(const btScalar* packed, const in
 
 /// W^T u for a matrix W stored by rows: the (unnormalised) outward normal at the point whose whitened coordinates
 /// are u (the gradient of |W (p - c)|^2 is 2 W^T W (p - c)).
-inline btVector3 btWhitenedNormal(const btMatrix3x3& w, const btVector3& u)
+inline btVector3 btWhitenedNormal(const btMatrix3x3 &w, const btVector3 &u)
 {
 	return w[0] * u.x() + w[1] * u.y() + w[2] * u.z();
 }

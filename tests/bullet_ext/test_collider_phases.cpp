@@ -15,7 +15,7 @@ using namespace bodyfit_test;
 namespace
 {
 
-btVector3 randomUnitVector(std::mt19937& rng)
+btVector3 randomUnitVector(std::mt19937 &rng)
 {
 	std::normal_distribution<double> n(0.0, 1.0);
 	btVector3 v(btScalar(n(rng)), btScalar(n(rng)), btScalar(n(rng)));
@@ -23,7 +23,7 @@ btVector3 randomUnitVector(std::mt19937& rng)
 }
 
 /// A random compound of `count` ellipsoids in a 1.8 m tall box, a quarter of them thin (down to 1000:1).
-std::unique_ptr<btEllipsoidCompoundShape> randomCompound(std::mt19937& rng, int count)
+std::unique_ptr<btEllipsoidCompoundShape> randomCompound(std::mt19937 &rng, int count)
 {
 	std::uniform_real_distribution<double> u(0.0, 1.0);
 	std::unique_ptr<btEllipsoidCompoundShape> s(new btEllipsoidCompoundShape());
@@ -40,7 +40,7 @@ std::unique_ptr<btEllipsoidCompoundShape> randomCompound(std::mt19937& rng, int 
 }
 
 /// Smallest zeta of a reference ellipsoid along the segment q -> x (closed form in whitened coordinates, double).
-double minZetaOnSegment(const RefEllipsoid& e, const Eigen::Vector3d& q, const Eigen::Vector3d& x)
+double minZetaOnSegment(const RefEllipsoid &e, const Eigen::Vector3d &q, const Eigen::Vector3d &x)
 {
 	const Eigen::Vector3d u0 = (e.rotation.transpose() * (q - e.center)).cwiseQuotient(e.radii);
 	const Eigen::Vector3d u1 = (e.rotation.transpose() * (x - e.center)).cwiseQuotient(e.radii);
@@ -50,7 +50,7 @@ double minZetaOnSegment(const RefEllipsoid& e, const Eigen::Vector3d& q, const E
 	return (u0 + t * d).squaredNorm();
 }
 
-bool boxesOverlap(const btVector3& aMin, const btVector3& aMax, const btVector3& bMin, const btVector3& bMax)
+bool boxesOverlap(const btVector3 &aMin, const btVector3 &aMax, const btVector3 &bMin, const btVector3 &bMax)
 {
 	for (int k = 0; k < 3; ++k)
 		if (aMin[k] > bMax[k] || aMax[k] < bMin[k])
@@ -61,15 +61,15 @@ bool boxesOverlap(const btVector3& aMin, const btVector3& aMax, const btVector3&
 struct QueryTally
 {
 	long long paths = 0;
-	long long metPairs = 0;  // (path, ellipsoid) pairs the grown path certainly meets
+	long long metPairs = 0;	 // (path, ellipsoid) pairs the grown path certainly meets
 	long long longPaths = 0; // paths longer than 4 grid cells (the cell walk / every-box branch)
 };
 
 /// One random node path around the union: a start near the surface of a random ellipsoid (half the paths; cloth
 /// lies there) or anywhere in the union's box grown by 20 cm, and a step of 0 to 40 mm (a cloth node at 60 Hz), or
 /// every eighth path, a jump of up to 1.5 m (a whipping corner, many cells).
-void randomPath(std::mt19937& rng, const std::vector<RefEllipsoid>& ref, const btVector3& lo, const btVector3& hi,
-				btVector3& q, btVector3& x)
+void randomPath(std::mt19937 &rng, const std::vector<RefEllipsoid> &ref, const btVector3 &lo, const btVector3 &hi,
+				btVector3 &q, btVector3 &x)
 {
 	std::uniform_real_distribution<double> u(0.0, 1.0);
 	const btVector3 grow(btScalar(0.2), btScalar(0.2), btScalar(0.2));
@@ -78,10 +78,10 @@ void randomPath(std::mt19937& rng, const std::vector<RefEllipsoid>& ref, const b
 				  btScalar(a.z() + (b.z() - a.z()) * u(rng)));
 	if (u(rng) < 0.5)
 	{
-		const RefEllipsoid& e = ref[size_t(u(rng) * double(ref.size())) % ref.size()];
+		const RefEllipsoid &e = ref[size_t(u(rng) * double(ref.size())) % ref.size()];
 		const btVector3 dir = randomUnitVector(rng);
-		const Eigen::Vector3d p =
-			e.center + e.rotation * (toE(dir).cwiseProduct(e.radii) * (0.8 + 0.5 * u(rng)) + Eigen::Vector3d::Constant(0.01 * (u(rng) - 0.5)));
+		const Eigen::Vector3d p = e.center + e.rotation * (toE(dir).cwiseProduct(e.radii) * (0.8 + 0.5 * u(rng)) +
+														   Eigen::Vector3d::Constant(0.01 * (u(rng) - 0.5)));
 		q = btVector3(btScalar(p.x()), btScalar(p.y()), btScalar(p.z()));
 	}
 	const int kind = int(8 * u(rng));
@@ -92,9 +92,9 @@ void randomPath(std::mt19937& rng, const std::vector<RefEllipsoid>& ref, const b
 /// Checks one path: the query's list has no duplicates, holds only entries whose world box overlaps the grown path
 /// box (the brute-force box filter), and holds every ellipsoid that the path, moved by any offset o with
 /// |o|_inf <= radius (the 8 corners and the centre of the radius cube), meets by more than the rounding margin.
-void checkPath(const btEllipsoidWorldCache& cache, const btEllipsoidWorldCache::PathQuery& query,
-			   const std::vector<RefEllipsoid>& ref, btScalar radius, const btVector3& q, const btVector3& x,
-			   std::vector<int>& buffer, QueryTally& tally)
+void checkPath(const btEllipsoidWorldCache &cache, const btEllipsoidWorldCache::PathQuery &query,
+			   const std::vector<RefEllipsoid> &ref, btScalar radius, const btVector3 &q, const btVector3 &x,
+			   std::vector<int> &buffer, QueryTally &tally)
 {
 	const int n = query.candidates(q, x, buffer.data());
 	REQUIRE(n >= 0);
@@ -129,7 +129,8 @@ void checkPath(const btEllipsoidWorldCache& cache, const btEllipsoidWorldCache::
 		{
 			Eigen::Vector3d o = Eigen::Vector3d::Zero();
 			if (corner < 8)
-				o = double(radius) * Eigen::Vector3d((corner & 1) ? 1 : -1, (corner & 2) ? 1 : -1, (corner & 4) ? 1 : -1);
+				o = double(radius) *
+					Eigen::Vector3d((corner & 1) ? 1 : -1, (corner & 2) ? 1 : -1, (corner & 4) ? 1 : -1);
 			meets = minZetaOnSegment(ref[k], toE(q) + o, toE(x) + o) <= shrunk * shrunk;
 		}
 		if (!meets)
@@ -182,7 +183,8 @@ TEST_CASE("broad phase: the collider's path query lists every ellipsoid a grown 
 	CHECK(tally.longPaths > 1000);
 }
 
-TEST_CASE("broad phase: an empty cache and a path far from the union list nothing", "[bullet_ext][collider][broadphase]")
+TEST_CASE("broad phase: an empty cache and a path far from the union list nothing",
+		  "[bullet_ext][collider][broadphase]")
 {
 	btEllipsoidWorldCache empty;
 	const btEllipsoidWorldCache::PathQuery none(empty, btScalar(0.002));
@@ -195,7 +197,7 @@ TEST_CASE("broad phase: an empty cache and a path far from the union list nothin
 	cache.update(&shape, btTransform::getIdentity());
 	const btEllipsoidWorldCache::PathQuery query(cache, btScalar(0.002));
 	CHECK(query.candidates(btVector3(1, 1, 1), btVector3(1.1, 1, 1), out) == 0);
-	CHECK(query.candidates(btVector3(0, 0.5, 0), btVector3(0, 0.25, 0), out) == 0); // ends 50 mm above the top
+	CHECK(query.candidates(btVector3(0, 0.5, 0), btVector3(0, 0.25, 0), out) == 0);	 // ends 50 mm above the top
 	CHECK(query.candidates(btVector3(0, 0.5, 0), btVector3(0, 0.201, 0), out) == 1); // 1 mm above: within the radius
 	CHECK(out[0] == 0);
 }
@@ -209,13 +211,13 @@ struct AxisAlignedSet
 	btEllipsoidCompoundShape shape;
 	btEllipsoidWorldCache cache;
 	std::vector<int> all;
-	void add(const btVector3& c, const btVector3& a)
+	void add(const btVector3 &c, const btVector3 &a)
 	{
 		shape.addEllipsoid(c, btMatrix3x3::getIdentity(), a);
 		cache.update(&shape, btTransform::getIdentity());
 		all.push_back(int(all.size()));
 	}
-	btPathEntry entry(const btVector3& q, const btVector3& x, std::vector<btScalar>& tvals) const
+	btPathEntry entry(const btVector3 &q, const btVector3 &x, std::vector<btScalar> &tvals) const
 	{
 		tvals.assign(all.size(), btScalar(-1));
 		btPathEntry out;
@@ -229,7 +231,8 @@ const double kRootTol = 16.0 * double(SIMD_EPSILON);
 
 } // namespace
 
-TEST_CASE("narrow phase: segment entry into the unit ball against the closed form", "[bullet_ext][collider][narrowphase]")
+TEST_CASE("narrow phase: segment entry into the unit ball against the closed form",
+		  "[bullet_ext][collider][narrowphase]")
 {
 	SECTION("axis-aligned through the centre: entry at u = -1")
 	{
@@ -288,7 +291,7 @@ TEST_CASE("narrow phase: earliest entry over packed records, start inside, ties 
 		  "[bullet_ext][collider][narrowphase]")
 {
 	AxisAlignedSet set;
-	set.add(btVector3(0, 0, 0), btVector3(0.5, 0.2, 0.1));   // 0
+	set.add(btVector3(0, 0, 0), btVector3(0.5, 0.2, 0.1));	 // 0
 	set.add(btVector3(0.8, 0, 0), btVector3(0.2, 0.2, 0.2)); // 1: x in [0.6, 1.0]
 	std::vector<btScalar> tvals;
 	SECTION("along x through both: ellipsoid 0 first, entry at x = -0.5")
@@ -296,7 +299,7 @@ TEST_CASE("narrow phase: earliest entry over packed records, start inside, ties 
 		const btPathEntry e = set.entry(btVector3(-1, 0, 0), btVector3(1, 0, 0), tvals);
 		REQUIRE(e.m_ellipsoid == 0);
 		CHECK_FALSE(e.m_startInside);
-		CHECK(double(e.m_t) == Approx(0.25).margin(kRootTol)); // x = -1 + 2 t = -0.5
+		CHECK(double(e.m_t) == Approx(0.25).margin(kRootTol));	 // x = -1 + 2 t = -0.5
 		CHECK(double(tvals[1]) == Approx(0.8).margin(kRootTol)); // x = 0.6
 		// The entry point lies on the unit sphere of ellipsoid 0's whitened coordinates, at u = (-1, 0, 0).
 		CHECK(double(e.m_u.x()) == Approx(-1.0).margin(kRootTol));

@@ -31,23 +31,23 @@ namespace
 struct PatchSettings
 {
 	int resolution = 100;
-	double size = 1.2;     // metres
-	double drop = 0.03;    // metres above the head top
-	int steps = 120;       // 2 s at 60 Hz, one substep each
+	double size = 1.2;	// metres
+	double drop = 0.03; // metres above the head top
+	int steps = 120;	// 2 s at 60 Hz, one substep each
 	double dt = 1.0 / 60.0;
 	int iterations = 10;   // piterations
 	double friction = 0.5; // the collider's Coulomb coefficient
 	double clothMargin = 0.005;
-	double skin = 0.002;   // collider skin offset
-	double voxel = 0.02;   // sparse-SDF voxel (unused by the collider; set as the suite does)
+	double skin = 0.002; // collider skin offset
+	double voxel = 0.02; // sparse-SDF voxel (unused by the collider; set as the suite does)
 };
 
 const std::uint64_t kFnvOffset = 14695981039346656037ull;
 const std::uint64_t kFnvPrime = 1099511628211ull;
 
-std::uint64_t fnv1a(std::uint64_t h, const void* data, size_t bytes)
+std::uint64_t fnv1a(std::uint64_t h, const void *data, size_t bytes)
 {
-	const unsigned char* p = static_cast<const unsigned char*>(data);
+	const unsigned char *p = static_cast<const unsigned char *>(data);
 	for (size_t i = 0; i < bytes; ++i)
 	{
 		h ^= p[i];
@@ -57,11 +57,11 @@ std::uint64_t fnv1a(std::uint64_t h, const void* data, size_t bytes)
 }
 
 /// Hash of the x, y, z bytes of every node's position and velocity (the fourth btVector3 lane is not state).
-std::uint64_t hashNodes(std::uint64_t h, const btSoftBody& cloth)
+std::uint64_t hashNodes(std::uint64_t h, const btSoftBody &cloth)
 {
 	for (int i = 0; i < cloth.m_nodes.size(); ++i)
 	{
-		const btSoftBody::Node& n = cloth.m_nodes[i];
+		const btSoftBody::Node &n = cloth.m_nodes[i];
 		h = fnv1a(h, n.m_x.m_floats, 3 * sizeof(btScalar));
 		h = fnv1a(h, n.m_v.m_floats, 3 * sizeof(btScalar));
 	}
@@ -69,7 +69,7 @@ std::uint64_t hashNodes(std::uint64_t h, const btSoftBody& cloth)
 }
 
 /// Cloth centre over the head: mean x, z of the top 10% (by height) of the mesh vertices, as the suite places it.
-btVector3 patchCentre(const bodyfit::TriMesh& body, const PatchSettings& s)
+btVector3 patchCentre(const bodyfit::TriMesh &body, const PatchSettings &s)
 {
 	const double top = body.V.col(1).maxCoeff();
 	const double h = top - body.V.col(1).minCoeff();
@@ -87,13 +87,13 @@ btVector3 patchCentre(const bodyfit::TriMesh& body, const PatchSettings& s)
 	return btVector3(btScalar(cx), btScalar(top + s.drop), btScalar(cz));
 }
 
-btSoftBody* createPatch(btSoftBodyWorldInfo& info, const btVector3& centre, const PatchSettings& s)
+btSoftBody *createPatch(btSoftBodyWorldInfo &info, const btVector3 &centre, const PatchSettings &s)
 {
 	const btScalar hs = btScalar(s.size / 2);
 	const btScalar cx = centre.x(), y = centre.y(), cz = centre.z();
-	btSoftBody* cloth = btSoftBodyHelpers::CreatePatch(info, btVector3(cx - hs, y, cz - hs), btVector3(cx + hs, y, cz - hs),
-													   btVector3(cx - hs, y, cz + hs), btVector3(cx + hs, y, cz + hs),
-													   s.resolution, s.resolution, 0, true);
+	btSoftBody *cloth = btSoftBodyHelpers::CreatePatch(
+		info, btVector3(cx - hs, y, cz - hs), btVector3(cx + hs, y, cz - hs), btVector3(cx - hs, y, cz + hs),
+		btVector3(cx + hs, y, cz + hs), s.resolution, s.resolution, 0, true);
 	cloth->getCollisionShape()->setMargin(btScalar(s.clothMargin));
 	cloth->m_cfg.piterations = s.iterations;
 	cloth->m_cfg.kDP = btScalar(0.01);
@@ -104,12 +104,13 @@ btSoftBody* createPatch(btSoftBodyWorldInfo& info, const btVector3& centre, cons
 	return cloth;
 }
 
-void printStats(const btEllipsoidClothStats& st)
+void printStats(const btEllipsoidClothStats &st)
 {
-	std::printf("replay stats: substeps %d, tested %d, corrected %d, pushed out %d, repaired %d, push-out fallbacks %d, "
-				"enclosed %d, non-finite %d, min zeta %.9g\n",
-				st.m_substeps, st.m_nodesTested, st.m_nodesCorrected, st.m_nodesPushedOut, st.m_nodesRepaired,
-				st.m_pushOutFallbacks, st.m_pushOutEnclosed, st.m_nonFiniteNodes, double(st.m_minZeta));
+	std::printf(
+		"replay stats: substeps %d, tested %d, corrected %d, pushed out %d, repaired %d, push-out fallbacks %d, "
+		"enclosed %d, non-finite %d, min zeta %.9g\n",
+		st.m_substeps, st.m_nodesTested, st.m_nodesCorrected, st.m_nodesPushedOut, st.m_nodesRepaired,
+		st.m_pushOutFallbacks, st.m_pushOutEnclosed, st.m_nonFiniteNodes, double(st.m_minZeta));
 }
 
 } // namespace
@@ -128,7 +129,7 @@ TEST_CASE("replay: node hash of the draped patch of colliders_patch (a)", "[.rep
 	btEllipsoidClothSoftBodySolver softSolver;
 	btSoftRigidDynamicsWorld world(&dispatcher, &broadphase, &solver, &config, &softSolver);
 	world.setGravity(btVector3(0, btScalar(-9.81), 0));
-	btSoftBodyWorldInfo& info = world.getWorldInfo();
+	btSoftBodyWorldInfo &info = world.getWorldInfo();
 	info.m_gravity.setValue(0, btScalar(-9.81), 0);
 	info.m_sparsesdf.setDefaultVoxelsz(btScalar(s.voxel));
 	info.m_sparsesdf.Reset();
@@ -138,14 +139,14 @@ TEST_CASE("replay: node hash of the draped patch of colliders_patch (a)", "[.rep
 	bodyObject.setFriction(btScalar(1.0));
 	world.addCollisionObject(&bodyObject, btBroadphaseProxy::StaticFilter,
 							 btBroadphaseProxy::AllFilter ^ btBroadphaseProxy::StaticFilter);
-	btSoftBody* cloth = createPatch(info, patchCentre(mesh.full, s), s);
+	btSoftBody *cloth = createPatch(info, patchCentre(mesh.full, s), s);
 	world.addSoftBody(cloth);
 
 	btEllipsoidClothCollider::Config cc;
 	cc.m_skinOffset = btScalar(s.skin);
 	cc.m_friction = btScalar(s.friction);
-	const char* why = nullptr;
-	btEllipsoidClothCollider* collider = softSolver.installCollider(&world, &bodyObject, cc, &why);
+	const char *why = nullptr;
+	btEllipsoidClothCollider *collider = softSolver.installCollider(&world, &bodyObject, cc, &why);
 	INFO((why ? why : ""));
 	REQUIRE(collider);
 
@@ -161,7 +162,7 @@ TEST_CASE("replay: node hash of the draped patch of colliders_patch (a)", "[.rep
 		std::printf("replay step %d: nodes %016llx, running %016llx\n", step + 1,
 					(unsigned long long)hashNodes(kFnvOffset, *cloth), (unsigned long long)running);
 	}
-	const btEllipsoidClothStats& st = collider->getAccumulatedStats();
+	const btEllipsoidClothStats &st = collider->getAccumulatedStats();
 	std::printf("replay hash (btScalar %s, steps %d-%d): %016llx\n", sizeof(btScalar) == 8 ? "double" : "float",
 				firstContact + 1, s.steps, (unsigned long long)running);
 	printStats(st);
@@ -171,7 +172,7 @@ TEST_CASE("replay: node hash of the draped patch of colliders_patch (a)", "[.rep
 	CHECK(st.m_nodesCorrected > 0);
 	CHECK(st.m_nonFiniteNodes == 0);
 	CHECK(st.m_minZeta >= btScalar(1)); // the guarantee is exact on the collider's own evaluation (no tolerance)
-	if (const char* expected = std::getenv("BODYFIT_REPLAY_HASH"))
+	if (const char *expected = std::getenv("BODYFIT_REPLAY_HASH"))
 	{
 		const unsigned long long want = std::strtoull(expected, nullptr, 16);
 		CHECK((unsigned long long)running == want);

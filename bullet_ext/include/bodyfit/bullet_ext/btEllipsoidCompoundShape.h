@@ -190,7 +190,8 @@ public:
 	public:
 		/// Prepares the query for the cache's current state and a radius >= 0 (the collider's skin offset).
 		PathQuery(const btEllipsoidWorldCache& cache, btScalar radius);
-		/// Writes the candidates to out (room for size() indices) and returns their number. Inline (below): it
+		/// Writes the candidates to out (room for size() indices) and returns their number; q and x must be finite
+		/// (the collider skips NaN/Inf nodes before). Inline (below): it
 		/// runs once per cloth node and substep.
 		int candidates(const btVector3& q, const btVector3& x, int* out) const;
 
@@ -203,7 +204,7 @@ public:
 		const int* m_cellItems;
 		const int* m_wideStart;
 		const int* m_wideItems;
-		btVector3 m_unionMin;
+		btVector3 m_unionMin;     ///< the union's box (inverted when the cache is empty)
 		btVector3 m_unionMax;
 		btScalar m_invCell;
 		btVector3 m_radiusBox;    ///< (radius, radius, radius)
@@ -324,15 +325,14 @@ private:
 
 BT_ELLIPSOID_ALWAYS_INLINE int btEllipsoidWorldCache::PathQuery::candidates(const btVector3& q, const btVector3& x, int* out) const
 {
-	if (m_count == 0)
-		return 0;
-	btVector3 boxMin = x, boxMax = x;
-	boxMin.setMin(q);
-	boxMax.setMax(q);
+	// The path box, as btVector3::setMin / setMax would give it, written as selects (branch-free min/max; the
+	// branches of btSetMin are a coin toss per node).
+	btVector3 boxMin(q.x() < x.x() ? q.x() : x.x(), q.y() < x.y() ? q.y() : x.y(), q.z() < x.z() ? q.z() : x.z());
+	btVector3 boxMax(x.x() < q.x() ? q.x() : x.x(), x.y() < q.y() ? q.y() : x.y(), x.z() < q.z() ? q.z() : x.z());
 	boxMin -= m_radiusBox;
 	boxMax += m_radiusBox;
 	if (!boxesOverlap(boxMin, boxMax, m_unionMin, m_unionMax))
-		return 0;
+		return 0; // (an empty cache has an inverted union box: every path misses it)
 	// In cell units f = (p - origin) / cell of the body frame (the grid's). The path grown by the radius lies in the
 	// cube of half-size |x - q| / 2 + radius around its midpoint m (a rotation keeps lengths). Fast path: that cube
 	// lies within the grown cell of m's cell (the cell plus the dilation on every side, less the rounding allowance),
