@@ -39,8 +39,9 @@ E_j is the paper's fitting error: the mean radial distance of an ellipsoid's ver
 The whole-mesh path (--no-segmentation, or a failed segmentation) uses the torso threshold.
 The body is segmented into 15 regions (head, 6 torso parts, upper/lower arms and legs; the mesh must be
 +y up and face +z, so the subject's left is +x) and each region is fitted on its own. A mesh that is
-not a standing human is fitted as one region, with a warning. The largest connected component is
-used. Exit status: 0 ok, 2 bad input (one-line reason on stderr), 1 internal error.
+not a standing human is fitted as one region, with a warning. A body made of several meshes (separate
+head or hands a few mm away, eyes inside) is fitted as one body; components far from it (props) are
+ignored with a warning. Exit status: 0 ok, 2 bad input (one-line reason on stderr), 1 internal error.
 )";
 
 using Clock = std::chrono::steady_clock;
@@ -69,7 +70,7 @@ void printSummary(const bodyfit::LoadedMesh& loaded, const bodyfit::BodyFit& fit
 			  << " faces used (file: " << r.fileVertices << " vertices, " << r.fileFaces << " faces; welded "
 			  << r.weldedVertices << ", degenerate faces " << r.degenerateFaces << ", components " << r.components;
 	if (r.droppedComponentVertices > 0)
-		std::cout << ", " << r.droppedComponentVertices << " vertices in smaller components ignored";
+		std::cout << ", " << r.droppedComponentVertices << " vertices in detached components ignored";
 	std::cout << ")\n";
 	std::cout << "  frame     file up " << bodyfit::toString(r.up)
 			  << (r.up == bodyfit::UpAxis::Y ? " (no rotation)" : " (rotated to +y up)") << ", scale " << r.scale
@@ -207,6 +208,10 @@ int main(int argc, char** argv)
 			timings.push_back({"segmentation", segmentation.milliseconds});
 		timings.insert(timings.end(), fit.timings.begin(), fit.timings.end());
 		fit.timings = timings;
+		// What loading joined, kept or ignored of a body made of several meshes (mesh_io.h, components.h).
+		fit.warnings.insert(fit.warnings.begin(), loaded.report.warnings.begin(), loaded.report.warnings.end());
+		for (const std::string& w : loaded.report.warnings)
+			std::cerr << "bodyfit-fit: warning: " << w << "\n";
 		if (segment && !segmentation.ok)
 		{
 			const std::string warning =

@@ -48,6 +48,12 @@ double unfoldedDiagonal(const Eigen::Vector3d& a, const Eigen::Vector3d& b, cons
 } // namespace
 
 GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& options)
+	: GeodesicSolver(mesh, options, {})
+{
+}
+
+GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& options,
+	const std::vector<std::pair<int, int>>& bridges)
 {
 	const int n = mesh.vertexCount();
 	const int m = mesh.faceCount();
@@ -123,6 +129,10 @@ GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& optio
 			}
 		}
 	}
+
+	for (const auto& [a, b] : bridges)
+		if (a >= 0 && a < n && b >= 0 && b < n && a != b)
+			edges.push_back({std::min(a, b), std::max(a, b), (mesh.V.row(a) - mesh.V.row(b)).norm(), 1});
 
 	// CSR adjacency; then one record per vertex pair (the shortest; a mesh edge wins a tie), sorted by neighbour.
 	std::vector<int> degree(static_cast<size_t>(n) + 1, 0);

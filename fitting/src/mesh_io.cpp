@@ -364,14 +364,27 @@ LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const st
 	r.unreferencedVertices = int(std::count(used.begin(), used.end(), 0));
 	out.full = extract(welded, used);
 
-	int count = 0;
-	const std::vector<int> comp = connectedComponents(out.full, &count);
-	r.components = count;
-	std::vector<char> inLargest(comp.size());
-	for (size_t i = 0; i < comp.size(); ++i)
-		inLargest[i] = comp[i] == 0;
-	out.mesh = count > 1 ? extract(out.full, inLargest) : out.full;
-	r.droppedComponentVertices = int(out.full.V.rows() - out.mesh.V.rows());
+	const ComponentLayout fullLayout = analyzeComponents(out.full, options.components);
+	r.components = int(fullLayout.components.size());
+	r.attachedComponents = fullLayout.count(ComponentRole::Attached);
+	r.insideComponents = fullLayout.count(ComponentRole::Inside);
+	r.insideComponentVertices = fullLayout.vertexCount(ComponentRole::Inside);
+	r.detachedComponents = fullLayout.count(ComponentRole::Detached);
+	r.droppedComponentVertices = fullLayout.vertexCount(ComponentRole::Detached);
+	r.warnings = componentWarnings(fullLayout);
+	if (r.detachedComponents > 0)
+	{
+		std::vector<char> keep(size_t(out.full.vertexCount()));
+		for (int v = 0; v < out.full.vertexCount(); ++v)
+			keep[size_t(v)] = fullLayout.kept(v);
+		out.mesh = extract(out.full, keep);
+		out.components = analyzeComponents(out.mesh, options.components);
+	}
+	else
+	{
+		out.mesh = out.full;
+		out.components = fullLayout;
+	}
 
 	requireUsable(out.mesh, name);
 	r.bboxDiagonal = bboxDiagonal(out.mesh.V);

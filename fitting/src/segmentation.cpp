@@ -3,6 +3,7 @@
 
 #include "bodyfit/fitting/segmentation.h"
 
+#include "bodyfit/fitting/components.h"
 #include "bodyfit/fitting/mesh_io.h"
 
 #include <Eigen/Geometry>
@@ -304,13 +305,19 @@ namespace
 std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options, Segmentation& seg)
 {
 	const int n = mesh.vertexCount();
-	int componentCount = 0;
-	const std::vector<int> component = connectedComponents(mesh, &componentCount);
+	// The body = its largest component and the separate parts joined to it (bridged: one geodesic graph); enclosed
+	// parts (eyes, teeth) and detached ones stay out of the geodesics and take the label of the nearest body vertex.
+	const ComponentLayout layout = analyzeComponents(mesh, options.components);
+	const int componentCount = int(layout.components.size());
+	std::vector<int> component(size_t(n), 0); // 0 = on the body
 	int mainCount = 0;
-	for (int c : component)
-		mainCount += c == 0 ? 1 : 0;
+	for (int v = 0; v < n; ++v)
+	{
+		component[size_t(v)] = layout.onBody(v) ? 0 : 1;
+		mainCount += 1 - component[size_t(v)];
+	}
 	if (mainCount < 100)
-		return "too few vertices for a body (" + std::to_string(mainCount) + " in the largest component, need 100)";
+		return "too few vertices for a body (" + std::to_string(mainCount) + " on the body, need 100)";
 
 	double yMin = std::numeric_limits<double>::infinity(), yMax = -yMin;
 	for (int v = 0; v < n; ++v)
@@ -326,7 +333,7 @@ std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options,
 		return "the mesh has no height (flat in y)";
 
 	const std::vector<double> area = vertexAreas(mesh);
-	GeodesicSolver solver(mesh, options.geodesics);
+	GeodesicSolver solver(mesh, options.geodesics, layout.bridges);
 
 	// Centre: the vertex of the main component nearest its area-weighted centroid.
 	Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
@@ -676,24 +683,12 @@ std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options,
 	// Every region one connected piece: stray islands (tessellation noise at the cuts) join their neighbours.
 	mergeStrayPieces(solver, component, labels, 8);
 
-	// Vertices outside the main component: label of the nearest main-component vertex.
+	// Vertices off the body (enclosed or detached components): label of the nearest body vertex.
 	if (componentCount > 1)
 	{
+		const std::vector<int> nearest = nearestBodyVertex(mesh, layout);
 		for (int v = 0; v < n; ++v)
-		{
-			if (component[size_t(v)] == 0)
-				continue;
-			double best = std::numeric_limits<double>::infinity();
-			for (int w = 0; w < n; ++w)
-			{
-				const double d2 = (vertex(mesh, v) - vertex(mesh, w)).squaredNorm();
-				if (component[size_t(w)] == 0 && d2 < best)
-				{
-					best = d2;
-					labels[size_t(v)] = labels[size_t(w)];
-				}
-			}
-		}
+			labels[size_t(v)] = labels[size_t(nearest[size_t(v)])];
 	}
 
 	if (options.validate)

@@ -1,6 +1,7 @@
 #pragma once
 // Closed triangle meshes generated in code for the geodesic and segmentation tests: UV sphere, subdivided cube,
-// flat grid, a star-shaped "animal" blob, and vertex re-indexing / mirroring helpers.
+// flat grid, a star-shaped "animal" blob, vertex re-indexing / mirroring helpers, and the helpers that build
+// bodies of several meshes (game assets) from a bundled body: detach faces as a separate mesh, append meshes.
 #include "bodyfit/fitting/types.h"
 
 #include <Eigen/Geometry>
@@ -210,6 +211,51 @@ inline bodyfit::TriMesh mirroredX(const bodyfit::TriMesh& mesh)
 	bodyfit::TriMesh out = mesh;
 	out.V.col(0) = -out.V.col(0);
 	out.F.col(1).swap(out.F.col(2));
+	return out;
+}
+
+/// The two meshes as one (b's vertices after a's; no vertex shared): b becomes a separate component.
+inline bodyfit::TriMesh appended(const bodyfit::TriMesh& a, const bodyfit::TriMesh& b)
+{
+	bodyfit::TriMesh out;
+	out.V.resize(a.V.rows() + b.V.rows(), 3);
+	out.V << a.V, b.V;
+	out.F.resize(a.F.rows() + b.F.rows(), 3);
+	out.F << a.F, (b.F.array() + int(a.V.rows())).matrix();
+	return out;
+}
+
+/// Cuts the faces for which `selected(face)` holds off the mesh as a separate mesh moved by `offset`, as a game
+/// asset's separate head or hands: their vertices move, and those they share with the other faces are duplicated
+/// (the copies come after the input's vertices), so the cut stays open on both sides. Vertex i of the input is
+/// still vertex i (moved when only selected faces use it); `copyOf`, when given, receives for each input vertex the
+/// index of its moved copy or of itself when it moved, -1 when it stays.
+inline bodyfit::TriMesh detached(const bodyfit::TriMesh& mesh, const std::function<bool(int)>& selected,
+	const Eigen::Vector3d& offset, std::vector<int>* copyOf = nullptr)
+{
+	const int n = mesh.vertexCount();
+	std::vector<char> bySelected(size_t(n), 0), byRest(size_t(n), 0);
+	for (int f = 0; f < mesh.faceCount(); ++f)
+		for (int k = 0; k < 3; ++k)
+			(selected(f) ? bySelected : byRest)[size_t(mesh.F(f, k))] = 1;
+	std::vector<int> copy(size_t(n), -1);
+	int next = n;
+	for (int v = 0; v < n; ++v)
+		if (bySelected[size_t(v)])
+			copy[size_t(v)] = byRest[size_t(v)] ? next++ : v;
+	bodyfit::TriMesh out;
+	out.V.resize(next, 3);
+	out.V.topRows(n) = mesh.V;
+	for (int v = 0; v < n; ++v)
+		if (copy[size_t(v)] >= 0)
+			out.V.row(copy[size_t(v)]) = mesh.V.row(v) + offset.transpose();
+	out.F = mesh.F;
+	for (int f = 0; f < mesh.faceCount(); ++f)
+		if (selected(f))
+			for (int k = 0; k < 3; ++k)
+				out.F(f, k) = copy[size_t(mesh.F(f, k))];
+	if (copyOf)
+		*copyOf = copy;
 	return out;
 }
 

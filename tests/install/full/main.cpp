@@ -10,6 +10,7 @@
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 #include "bodyfit/bullet_ext/btEllipsoidShape.h"
 #include "bodyfit/fitting/body_fitter.h"
+#include "bodyfit/fitting/components.h"
 #include "bodyfit/fitting/ellipsoid.h"
 #include "bodyfit/fitting/ellipsoid_io.h"
 #include "bodyfit/fitting/errors.h"
