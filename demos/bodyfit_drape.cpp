@@ -190,6 +190,8 @@ int main(int argc, char** argv)
 		}
 		std::cerr << "bodyfit-drape: " << scene.name << ", " << sim->nodeCount() << " cloth nodes, "
 				  << sim->colliderDescription() << "\n";
+		for (const std::string& w : sim->warnings()) // also in the metrics JSON ("warnings")
+			std::cerr << "bodyfit-drape: warning: " << w << "\n";
 		auto lastPrint = std::chrono::steady_clock::now() - std::chrono::seconds(1);
 		auto progress = [&](int done, int total, const StepStats& st) {
 			const auto now = std::chrono::steady_clock::now();

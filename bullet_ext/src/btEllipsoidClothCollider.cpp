@@ -167,7 +167,8 @@ btEllipsoidClothCollider::btEllipsoidClothCollider(btCollisionObject* body, cons
 	  m_moving(false),
 	  m_substepIndex(0),
 	  m_substepCount(1),
-	  m_substepDt(btScalar(0))
+	  m_substepDt(btScalar(0)),
+	  m_precisionWarning(0)
 {
 	m_previousPose.setIdentity();
 	m_currentPose.setIdentity();
@@ -1073,6 +1074,14 @@ void btEllipsoidClothCollider::collide(btSoftBody* softBody, btScalar dt, const 
 	stats.m_collisionCpuSeconds += threadCpuSeconds() - cpu0;
 }
 
+btFloatRangeStatus btEllipsoidClothCollider::checkPrecision(const btCollisionObject* body, const Config& config,
+															const char** why)
+{
+	btVector3 lo, hi;
+	body->getCollisionShape()->getAabb(body->getWorldTransform(), lo, hi);
+	return btCheckFloatRange(lo, hi, btMax(config.m_skinOffset, kMinPrecisionResolution), why);
+}
+
 btEllipsoidClothCollider* btEllipsoidClothCollider::install(btSoftRigidDynamicsWorld* world, btCollisionObject* body,
 															 const Config& config, const char** whyNot)
 {
@@ -1147,8 +1156,23 @@ btEllipsoidClothCollider* btEllipsoidClothCollider::install(btSoftRigidDynamicsW
 		return 0;
 	}
 
+	// Far from the origin a float build cannot resolve the skin offset (btFloatRange.h): refuse, or warn.
+	const char* precision = 0;
+	const btFloatRangeStatus range = checkPrecision(body, config, &precision);
+	if (range == BT_FLOAT_RANGE_REFUSE)
+	{
+		if (owned)
+		{
+			owned->~btEllipsoidCompoundShape();
+			btAlignedFree(owned);
+		}
+		*reason = precision;
+		return 0;
+	}
+
 	void* mem = btAlignedAlloc(sizeof(btEllipsoidClothCollider), 16);
 	btEllipsoidClothCollider* collider = new (mem) btEllipsoidClothCollider(body, config);
+	collider->m_precisionWarning = precision;
 	collider->m_ownedCompound = owned;
 	collider->m_compound = compound;
 	ours->m_colliders.push_back(collider);

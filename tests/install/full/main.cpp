@@ -9,6 +9,7 @@
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 #include "bodyfit/bullet_ext/btEllipsoidShape.h"
+#include "bodyfit/bullet_ext/btFloatRange.h"
 #include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/components.h"
 #include "bodyfit/fitting/ellipsoid.h"

@@ -14,6 +14,7 @@ after Bullet's soft-body position solve, through a btDefaultSoftBodySolver subcl
 #include "LinearMath/btTransformUtil.h"
 
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
+#include "bodyfit/bullet_ext/btFloatRange.h"
 
 class btCollisionObject;
 class btEllipsoidClothSoftBodySolver;
@@ -99,6 +100,10 @@ public:
 	/// btEllipsoidCompoundShape (or a single btEllipsoidShape). The body need not be in the world.
 	/// \return the collider, owned by the solver (removed with uninstall or when the solver is destroyed), or 0 when
 	/// a precondition fails; the reason is written to *whyNot (a static one-line string) if whyNot is not 0.
+	/// In a float build the body must be near enough the origin for float coordinates to resolve the skin offset
+	/// (at least 1 mm): beyond BT_FLOAT_RANGE_REFUSE of btCheckFloatRange (btFloatRange.h; 8,192 m for the default
+	/// 2 mm skin) install refuses with the reason; beyond BT_FLOAT_RANGE_WARN (1,024 m) it installs and
+	/// getPrecisionWarning() says why the result may be degraded. The check uses the body's pose at install().
 	static btEllipsoidClothCollider* install(btSoftRigidDynamicsWorld* world, btCollisionObject* body,
 											 const Config& config = Config(), const char** whyNot = 0);
 	/// Removes and deletes the collider; re-enables Bullet's own response for the body. \return false if not found.
@@ -106,6 +111,12 @@ public:
 
 	btCollisionObject* getBody() const { return m_body; }
 	const Config& getConfig() const { return m_config; }
+	/// A static one-line warning when install() found the body far from the origin for this build's btScalar
+	/// (BT_FLOAT_RANGE_WARN of btFloatRange.h), 0 otherwise.
+	const char* getPrecisionWarning() const { return m_precisionWarning; }
+	/// The smallest length btCheckFloatRange is asked to resolve: the skin offset, but at least this (1 mm), so a
+	/// skin offset of 0 still needs coordinates that resolve cloth motion.
+	static btScalar minPrecisionResolution() { return kMinPrecisionResolution; }
 	void setConfig(const Config& config) { m_config = config; }
 
 	/// Counters of the most recent substep.
@@ -134,6 +145,9 @@ public:
 private:
 	friend class btEllipsoidClothSoftBodySolver;
 	btEllipsoidClothCollider(btCollisionObject* body, const Config& config);
+	static constexpr btScalar kMinPrecisionResolution = btScalar(0.001);
+	/// btCheckFloatRange of the body's world AABB against max(skin offset, kMinPrecisionResolution).
+	static btFloatRangeStatus checkPrecision(const btCollisionObject* body, const Config& config, const char** why);
 
 	btCollisionObject* m_body;
 	Config m_config;
@@ -152,6 +166,7 @@ private:
 	int m_substepIndex;
 	int m_substepCount;
 	btScalar m_substepDt;
+	const char* m_precisionWarning; ///< see getPrecisionWarning
 	btEllipsoidClothStats m_lastStats;
 	btEllipsoidClothStats m_accumulatedStats;
 	btAlignedObjectArray<int> m_candidates;
