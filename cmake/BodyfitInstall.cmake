@@ -30,6 +30,9 @@ foreach(_dir bullet_ext bullet_ext/bridge bullet_ext/drape)
 		FILES_MATCHING PATTERN "*.h")
 endforeach()
 
+install(FILES "${BODYFIT_GENERATED_INCLUDE_DIR}/bodyfit/bullet_ext/btBodyfitPrecision.h"
+	DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}/bodyfit/bullet_ext")
+
 foreach(_set bodyfitBulletTargets bodyfitFittingTargets bodyfitSceneTargets)
 	install(EXPORT ${_set} NAMESPACE bodyfit:: DESTINATION "${BODYFIT_INSTALL_CMAKEDIR}")
 endforeach()

@@ -158,6 +158,8 @@ int main(int argc, char** argv)
 				throw InvalidInputError("file '" + *p + "' does not exist");
 		std::cerr << "bodyfit-drape: loading body " << (args.body.empty() ? scene.body.mesh : args.body) << "\n";
 		body = loadBody(scene, args.body, args.ellipsoids);
+		for (const std::string& w : body.fitWarnings)
+			std::cerr << "bodyfit-drape: warning: fit: " << w << "\n";
 		sim = std::make_unique<DrapeSimulation>(scene, body);
 	}
 	catch (const FormatError& e)

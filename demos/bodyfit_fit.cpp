@@ -1,14 +1,12 @@
 // bodyfit-fit: fit ellipsoids to a body mesh and write them as JSON (docs/DESIGN.md sec. 6).
-#include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/ellipsoid_io.h"
-#include "bodyfit/fitting/mesh_io.h"
-#include "bodyfit/fitting/segmentation.h"
+#include "bodyfit/fitting/fit_pipeline.h"
 #include "common/cli.h"
 
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <utility>
 
 namespace
 {
@@ -20,7 +18,9 @@ Fits ellipsoids to a body mesh (any format assimp reads) and writes them as JSON
   -o OUT.json            output file (its directory is created if missing)
   --mu-torso R           error threshold E_j for the torso (default 0.012 = 1.2% of the height)
   --mu-limbs R           error threshold for head, arms and legs (default 0.009 = 0.9% of the height)
-  --absolute             thresholds are in metres, not fractions of the height
+  --absolute             thresholds are in metres, not fractions of the height (the lengths not given:
+                         a threshold left out, K-means sigma, triangle-cover spacing keep their relative
+                         defaults, converted to metres with the height like everything else)
   --max-ellipsoids N     budget: stop refining at N ellipsoids (default 128)
   --up y|z               up axis of the file (default y; z files are rotated to +y up)
   --scale S              multiply coordinates by S to get metres (default 1; 0.01 for centimetres)
@@ -43,8 +43,6 @@ not a standing human is fitted as one region, with a warning. A body made of sev
 head or hands a few mm away, eyes inside) is fitted as one body; components far from it (props) are
 ignored with a warning. Exit status: 0 ok, 2 bad input (one-line reason on stderr), 1 internal error.
 )";
-
-using Clock = std::chrono::steady_clock;
 
 std::string mm(double metres)
 {
@@ -90,7 +88,7 @@ void printSummary(const bodyfit::LoadedMesh& loaded, const bodyfit::BodyFit& fit
 			  << mm(fit.maxRadialError()) << "\n";
 	std::cout << "  air gap   vertex to own ellipsoid surface: mean " << mm(fit.meanDistance()) << ", max "
 			  << mm(fit.maxDistance()) << "\n";
-	std::cout << "  timing    load " << ms(fit.timingMs("load"));
+	std::cout << "  timing    load " << ms(fit.timingMs("load")) << ", repair " << ms(fit.timingMs("repair"));
 	if (fit.timingMs("segmentation") > 0.0)
 		std::cout << ", segmentation " << ms(fit.timingMs("segmentation"));
 	std::cout << ", fitting " << ms(fit.timingMs("fitting")) << " (k-means " << ms(fit.timingMs("fitting.kmeans"))
@@ -152,74 +150,37 @@ int main(int argc, char** argv)
 		const std::string segmentsPath = args.value("--segments");
 		if (args.has("--segments") && !hasExtension(segmentsPath, ".obj") && !hasExtension(segmentsPath, ".ply"))
 			throw UsageError("--segments: \"" + segmentsPath + "\" must end in .ply or .obj");
-		const bool segment = !args.has("--no-segmentation");
-		if (!segment && args.has("--segments"))
+		if (args.has("--no-segmentation") && args.has("--segments"))
 			throw UsageError("--segments needs the segmentation: drop --no-segmentation");
 
-		bodyfit::LoadOptions load;
-		load.up = args.choice("--up", {"y", "z"}, "y") == "z" ? bodyfit::UpAxis::Z : bodyfit::UpAxis::Y;
-		load.scale = args.number("--scale", 1.0, 0.0, 1e9, /*open=*/true);
-
-		bodyfit::BodyFitOptions options;
+		bodyfit::FitPipelineOptions options;
+		options.load.up = args.choice("--up", {"y", "z"}, "y") == "z" ? bodyfit::UpAxis::Z : bodyfit::UpAxis::Y;
+		options.load.scale = args.number("--scale", 1.0, 0.0, 1e9, /*open=*/true);
+		options.segment = !args.has("--no-segmentation");
+		options.fit.maxEllipsoids = args.integer("--max-ellipsoids", options.fit.maxEllipsoids, 1, 100000);
+		options.fit.coverTriangles = !args.has("--no-triangle-cover");
+		// Thresholds: fractions of the height, or metres with --absolute. Every length not given (the other
+		// threshold, sigma, the cover spacing) keeps its relative default; the pipeline converts all of them with H.
 		const bool absolute = args.has("--absolute");
 		const double huge = absolute ? 10.0 : 1.0; // a threshold >= the whole body (10 m, or 100% of H) is a typo
-		options.muTorso = args.number("--mu-torso", options.muTorso, 0.0, huge, /*open=*/true);
-		options.muLimbs = args.number("--mu-limbs", options.muLimbs, 0.0, huge, /*open=*/true);
-		options.maxEllipsoids = args.integer("--max-ellipsoids", options.maxEllipsoids, 1, 100000);
-		options.coverTriangles = !args.has("--no-triangle-cover");
+		for (const auto& [flag, length] : {std::pair{"--mu-torso", &options.lengths.muTorso},
+										   std::pair{"--mu-limbs", &options.lengths.muLimbs}})
+			if (args.has(flag))
+				*length = {args.number(flag, 0.0, 0.0, huge, /*open=*/true), !absolute};
 
-		// Load.
-		const Clock::time_point t0 = Clock::now();
-		const bodyfit::LoadedMesh loaded = bodyfit::loadTriMesh(meshPath, load);
-		const double loadMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-		const bodyfit::TriMesh& mesh = loaded.mesh;
-
-		if (absolute)
-		{
-			// Thresholds given in metres; the ones not given keep their relative defaults, converted with H.
-			const double height = mesh.V.col(1).maxCoeff() - mesh.V.col(1).minCoeff();
-			options.relativeToHeight = false;
-			options.sigma *= height;
-			if (!args.has("--mu-torso"))
-				options.muTorso *= height;
-			if (!args.has("--mu-limbs"))
-				options.muLimbs *= height;
-		}
-
-		// Region labels: the semantic segmentation, or the whole mesh as one region (generic path) when it is
-		// switched off or the mesh is not a standing human.
-		bodyfit::Segmentation segmentation;
-		std::string regionSummary = "whole mesh as one region (--no-segmentation)";
-		if (segment)
-		{
-			segmentation = bodyfit::segmentBody(mesh);
-			regionSummary = segmentation.ok
-								? std::to_string(bodyfit::kBodyRegionCount) + " body regions (segmentation)"
-								: "whole mesh as one region (segmentation failed)";
-		}
-		else
-			segmentation = bodyfit::wholeBodySegmentation(mesh, "segmentation switched off (--no-segmentation)");
-
-		// Fit.
-		bodyfit::BodyFit fit = bodyfit::fitBody(mesh, segmentation.labels, options);
-		fit.source.mesh = std::filesystem::path(meshPath).filename().string();
-		std::vector<bodyfit::StageTiming> timings = {{"load", loadMs}};
-		if (segment)
-			timings.push_back({"segmentation", segmentation.milliseconds});
-		timings.insert(timings.end(), fit.timings.begin(), fit.timings.end());
-		fit.timings = timings;
-		// What loading joined, kept or ignored of a body made of several meshes (mesh_io.h, components.h).
-		fit.warnings.insert(fit.warnings.begin(), loaded.report.warnings.begin(), loaded.report.warnings.end());
-		for (const std::string& w : loaded.report.warnings)
+		const bodyfit::FitPipelineResult result = bodyfit::fitMeshFile(meshPath, options);
+		const bodyfit::BodyFit& fit = result.fit;
+		const bodyfit::TriMesh& mesh = result.loaded.mesh;
+		const std::string regionSummary =
+			!options.segment ? "whole mesh as one region (--no-segmentation)"
+			: result.fallback ? "whole mesh as one region (segmentation failed)"
+							  : std::to_string(bodyfit::kBodyRegionCount) + " body regions (segmentation)";
+		if (result.fallback)
+			std::cerr << "bodyfit-fit: warning: " << fit.warnings.front() << "\n";
+		// What loading joined, kept or ignored of a body of several meshes, or found far from the origin (mesh_io.h);
+		// the pipeline also puts these lines into the fit's warnings.
+		for (const std::string& w : result.loaded.report.warnings)
 			std::cerr << "bodyfit-fit: warning: " << w << "\n";
-		if (segment && !segmentation.ok)
-		{
-			const std::string warning =
-				"segmentation failed (" + segmentation.failureReason +
-				"); fitted the whole mesh as one region (a body must stand along +y and face +z; see --up)";
-			fit.warnings.insert(fit.warnings.begin(), warning);
-			std::cerr << "bodyfit-fit: warning: " << warning << "\n";
-		}
 
 		// Outputs.
 		bodyfit_cli::ensureParentDirectory(outPath);
@@ -233,13 +194,13 @@ int main(int argc, char** argv)
 		{
 			bodyfit_cli::ensureParentDirectory(segmentsPath);
 			Eigen::MatrixX3d colors;
-			const bodyfit::TriMesh preview = bodyfit::segmentationPreview(mesh, segmentation, &colors);
+			const bodyfit::TriMesh preview = bodyfit::segmentationPreview(mesh, result.segmentation, &colors);
 			bodyfit::saveTriMesh(segmentsPath, preview, &colors);
 		}
 		std::string extraOutputs = exportPath;
 		if (!segmentsPath.empty())
 			extraOutputs += (extraOutputs.empty() ? "" : ", ") + segmentsPath;
-		printSummary(loaded, fit, regionSummary, outPath, extraOutputs);
+		printSummary(result.loaded, fit, regionSummary, outPath, extraOutputs);
 		return bodyfit_cli::kExitOk;
 	});
 }

@@ -8,6 +8,7 @@
 
 #include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/fit_pipeline.h"
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/segmentation.h"
 
@@ -186,8 +187,9 @@ inline std::vector<bodyfit::Ellipsoid> ellipsoidsOf(const bodyfit::BodyFit& fit)
 	return out;
 }
 
-/// Fits `repeats` times (deterministic: the result is the same each time), returns the fit and the median
-/// "fitting" stage time in ms (the report stage with the true distances is not part of it).
+/// Fits `repeats` times through the fit pipeline's fit step (deterministic: the result is the same each time),
+/// returns the fit and the median "fitting" stage time in ms (the report stage with the true distances is not part
+/// of it).
 inline bodyfit::BodyFit timedFit(const LoadedBody& body, const bodyfit::BodyFitOptions& options, int repeats,
 								 double* medianFitMs)
 {
@@ -195,7 +197,7 @@ inline bodyfit::BodyFit timedFit(const LoadedBody& body, const bodyfit::BodyFitO
 	bodyfit::BodyFit fit;
 	for (int r = 0; r < std::max(1, repeats); ++r)
 	{
-		fit = bodyfit::fitBody(body.mesh.mesh, body.segmentation.labels, options);
+		fit = bodyfit::fitSegmented(body.mesh.mesh, body.segmentation, bodyfit::FitPipelineOptions::from(options));
 		ms.push_back(fit.timingMs("fitting"));
 	}
 	*medianFitMs = median(ms);

@@ -53,7 +53,7 @@ int runBodyResolution(const bodyfit_bench::Context& ctx)
 			throw bodyfit::InvalidInputError(r.file + ": segmentation failed: " + seg.failureReason);
 		bodyfit::BodyFitOptions o;
 		o.trueDistance = false;
-		const bodyfit::BodyFit fit = bodyfit::fitBody(mesh, seg.labels, o);
+		const bodyfit::BodyFit fit = bodyfit::fitSegmented(mesh, seg, bodyfit::FitPipelineOptions::from(o));
 
 		bodyfit::drape::Scene scene = bodyfit::drape::loadScene(scenePath);
 		scene.garment.mesh = assetPath("male_young.skirt.obj");

@@ -14,7 +14,7 @@
 #include "bodyfit/fitting/ellipsoid_io.h"
 #include "bodyfit/fitting/inside_test.h"
 #include "bodyfit/fitting/mesh_io.h"
-#include "bodyfit/fitting/segmentation.h"
+#include "bodyfit/fitting/fit_pipeline.h"
 
 #include "bodyfit/bridge/btBodyFitToBullet.h"
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
@@ -379,9 +379,8 @@ BODYFIT_BENCH_SUITE(colliders_patch, "issue 4: 100x100 patch dropped on the body
 	else
 	{
 		std::cerr << "colliders_patch: no " << fitPath << ", fitting the body\n";
-		const bodyfit::Segmentation seg = bodyfit::segmentBody(mesh.mesh);
-		const bodyfit::BodyFit fit = seg.ok ? bodyfit::fitBody(mesh.mesh, seg.labels) : bodyfit::fitBody(mesh.mesh);
-		for (const bodyfit::FittedEllipsoid& f : fit.ellipsoids)
+		const bodyfit::FitPipelineResult fitted = bodyfit::fitMeshFile(meshPath);
+		for (const bodyfit::FittedEllipsoid& f : fitted.fit.ellipsoids)
 			ellipsoids.push_back(f.ellipsoid);
 		source = "fitted in process (default options)";
 	}

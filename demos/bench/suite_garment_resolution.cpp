@@ -23,7 +23,8 @@ int runGarmentResolution(const bodyfit_bench::Context& ctx)
 	const LoadedBody body = loadBody(asset.full, 1);
 	bodyfit::BodyFitOptions o;
 	o.trueDistance = false;
-	const bodyfit::BodyFit fit = bodyfit::fitBody(body.mesh.mesh, body.segmentation.labels, o);
+	const bodyfit::BodyFit fit =
+		bodyfit::fitSegmented(body.mesh.mesh, body.segmentation, bodyfit::FitPipelineOptions::from(o));
 	const bodyfit::drape::BodyData ellBody =
 		bodyData(body.mesh.full, ellipsoidsOf(fit), assetPath(asset.full), "fit at default thresholds");
 	const bodyfit::drape::BodyData meshBody = bodyData(body.mesh.full, {}, assetPath(asset.full), "none");

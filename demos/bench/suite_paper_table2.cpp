@@ -40,7 +40,7 @@ int runPaperTable2(const bodyfit_bench::Context& ctx)
 		const bodyfit::FitQuality q = bodyfit::measureFitQuality(body.mesh.full, ellipsoidsOf(fit), qopt,
 																 voxelResolution);
 		// For context: what the default thresholds give on this body.
-		const bodyfit::BodyFit defaults = bodyfit::fitBody(body.mesh.mesh, body.segmentation.labels, {});
+		const bodyfit::BodyFit defaults = bodyfit::fitSegmented(body.mesh.mesh, body.segmentation, {});
 		const double total = (body.segmentationMs + fitMs) / 1e3;
 		const double paperTotal = a.paperSegmentationS + a.paperFittingS;
 		t.addRow({a.paperName, a.decimated, fmtInt(body.mesh.mesh.vertexCount()), fmtInt(a.paperVertices),

@@ -8,6 +8,7 @@
 #include "bench/bench_common.h"
 
 #include "bodyfit/fitting/body_fitter.h"
+#include "bodyfit/fitting/fit_pipeline.h"
 #include "bodyfit/fitting/fit_quality.h"
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/segmentation.h"
@@ -60,14 +61,18 @@ struct Measured
 	bodyfit::FitQuality skin; ///< skin outside the union, sampled on the whole surface every 2 mm
 };
 
+/// Fits through the pipeline's fit step; `segmentation` is a successful one or the generic Region::Whole labels
+/// (chosen on purpose here: no fallback warning).
 Measured measure(const bodyfit_bench::Context& ctx, const bodyfit::TriMesh& mesh,
-				 const std::vector<bodyfit::Region>& labels, bodyfit::BodyFitOptions options)
+				 const bodyfit::Segmentation& segmentation, const bodyfit::BodyFitOptions& options)
 {
 	Measured m;
-	m.fit = bodyfit::fitBody(mesh, labels, options);
-	options.trueDistance = false;
-	m.medianMs = bodyfit_bench::medianMs(ctx.repeats, [&] { bodyfit::fitBody(mesh, labels, options); });
-	m.medianCpuMs = medianCpuMs(ctx.repeats, [&] { bodyfit::fitBody(mesh, labels, options); });
+	bodyfit::FitPipelineOptions pipeline = bodyfit::FitPipelineOptions::from(options);
+	pipeline.segment = segmentation.ok;
+	m.fit = bodyfit::fitSegmented(mesh, segmentation, pipeline);
+	pipeline.fit.trueDistance = false;
+	m.medianMs = bodyfit_bench::medianMs(ctx.repeats, [&] { bodyfit::fitSegmented(mesh, segmentation, pipeline); });
+	m.medianCpuMs = medianCpuMs(ctx.repeats, [&] { bodyfit::fitSegmented(mesh, segmentation, pipeline); });
 	bodyfit::FitQualityOptions q;
 	q.computeAirGap = false;
 	q.computeIoU = false;
@@ -107,8 +112,8 @@ int runWholeBody(const bodyfit_bench::Context& ctx)
 	{
 		std::cerr << "whole-body: " << name << "\n";
 		const TriMesh mesh = loadTriMesh(std::string(BODYFIT_ASSET_DIR) + "/" + name).mesh;
-		const std::vector<Region> labels(size_t(mesh.vertexCount()), Region::Whole);
-		addRow(whole, name, "whole (defaults)", mesh.vertexCount(), measure(ctx, mesh, labels, defaults));
+		const Segmentation generic = wholeBodySegmentation(mesh, "generic path");
+		addRow(whole, name, "whole (defaults)", mesh.vertexCount(), measure(ctx, mesh, generic, defaults));
 	}
 	std::cout << "## whole-body: generic path (no segmentation), mu_torso " << defaults.muTorso
 			  << " H, budget " << defaults.maxEllipsoids << "\n\n";
@@ -120,7 +125,7 @@ int runWholeBody(const bodyfit_bench::Context& ctx)
 	{
 		const std::string name = "male_young.obj";
 		const TriMesh mesh = loadTriMesh(std::string(BODYFIT_ASSET_DIR) + "/" + name).mesh;
-		const std::vector<Region> whole(size_t(mesh.vertexCount()), Region::Whole);
+		const Segmentation whole = wholeBodySegmentation(mesh, "generic path");
 		BodyFitOptions budget = defaults;
 		budget.muTorso = 1e-4; // unreachable: the count is the budget
 		budget.maxEllipsoids = 100;
@@ -129,15 +134,15 @@ int runWholeBody(const bodyfit_bench::Context& ctx)
 		if (seg.ok)
 		{
 			addRow(variants, name, "segmented (bisecting)", mesh.vertexCount(),
-				   measure(ctx, mesh, seg.labels, defaults));
+				   measure(ctx, mesh, seg, defaults));
 			BodyFitOptions noCover = defaults;
 			noCover.coverTriangles = false;
 			addRow(variants, name, "segmented, no triangle cover", mesh.vertexCount(),
-				   measure(ctx, mesh, seg.labels, noCover));
+				   measure(ctx, mesh, seg, noCover));
 			BodyFitOptions group = defaults;
 			group.reclusterGroup = true;
 			addRow(variants, name, "segmented (group k-means)", mesh.vertexCount(),
-				   measure(ctx, mesh, seg.labels, group));
+				   measure(ctx, mesh, seg, group));
 		}
 		else
 			std::cerr << "whole-body: segmentation failed on " << name << ": " << seg.failureReason << "\n";

@@ -186,51 +186,8 @@ public:
 		auto slot = [&](int s) { return s == 0 ? w : k + s - 1; }; // cluster index of seed s
 
 		KMeansResult km;
-		if (g.localSplits)
-		{
-			// Classic bisecting step: m-means on the cluster's own points; the other clusters keep theirs.
-			buffer_.resize(Eigen::Index(src.members.size()), 3);
-			for (std::size_t r = 0; r < src.members.size(); ++r)
-				buffer_.row(Eigen::Index(r)) = g.points.row(src.members[r]);
-			Eigen::MatrixX3d init(m, 3);
-			for (int s = 0; s < m; ++s)
-				init.row(s) = seeds[std::size_t(s)].transpose();
-			Clock::time_point t0 = Clock::now();
-			const KMeansResult local = kMeans(buffer_, init, kmeans_);
-			kmeansMs += msSince(t0);
-			if (local.emptyClusters > 0)
-				return false;
-			km.assignment = g.assignment;
-			for (std::size_t r = 0; r < src.members.size(); ++r)
-				km.assignment[std::size_t(src.members[r])] = slot(local.assignment[r]);
-			km.centers.resize(k + m - 1, 3);
-			km.centers.topRows(k) = g.centers;
-			for (int s = 0; s < m; ++s)
-				km.centers.row(slot(s)) = local.centers.row(s);
-			km.lowerBounds = g.lowerBounds; // only the global path uses them
-		}
-		else
-		{
-			// Paper step c: K-means on all points of the group with the split cluster's centre replaced by the
-			// seeds; warm-started from the previous run (only the seeded centres are new).
-			Eigen::MatrixX3d centers(k + m - 1, 3);
-			centers.topRows(k) = g.centers;
-			std::vector<bool> moved(std::size_t(k + m - 1), false);
-			for (int s = 0; s < m; ++s)
-			{
-				centers.row(slot(s)) = seeds[std::size_t(s)].transpose();
-				moved[std::size_t(slot(s))] = true;
-			}
-			KMeansWarmStart warm;
-			warm.assignment = &g.assignment;
-			warm.lowerBounds = &g.lowerBounds;
-			warm.moved = &moved;
-			Clock::time_point t0 = Clock::now();
-			km = kMeans(g.points, centers, kmeans_, &warm);
-			kmeansMs += msSince(t0);
-			if (km.emptyClusters > 0)
-				return false;
-		}
+		if (!splitAssignment(g, w, seeds, km))
+			return false;
 		const int kNew = k + m - 1;
 
 		// Clusters whose point set changed: the split one, the new ones, and any that gained or lost points.
@@ -277,6 +234,63 @@ public:
 		g.centers = km.centers;
 		g.assignment = std::move(km.assignment);
 		g.lowerBounds = std::move(km.lowerBounds);
+		return true;
+	}
+
+	/// K-means of a split (paper steps b-c): the split cluster's centre replaced by `seeds` (w keeps the first, the
+	/// others are appended). Locally (g.localSplits: on the cluster's own points, the other clusters keep theirs) or
+	/// on the whole group, warm-started. Returns false when a cluster ends up empty.
+	bool splitAssignment(const Group& g, int w, const std::vector<Eigen::Vector3d>& seeds, KMeansResult& km)
+	{
+		const int k = int(g.clusters.size());
+		const int m = int(seeds.size());
+		const Cluster& src = g.clusters[std::size_t(w)];
+		auto slot = [&](int s) { return s == 0 ? w : k + s - 1; }; // cluster index of seed s
+		if (g.localSplits)
+		{
+			// Classic bisecting step: m-means on the cluster's own points; the other clusters keep theirs.
+			buffer_.resize(Eigen::Index(src.members.size()), 3);
+			for (std::size_t r = 0; r < src.members.size(); ++r)
+				buffer_.row(Eigen::Index(r)) = g.points.row(src.members[r]);
+			Eigen::MatrixX3d init(m, 3);
+			for (int s = 0; s < m; ++s)
+				init.row(s) = seeds[std::size_t(s)].transpose();
+			Clock::time_point t0 = Clock::now();
+			const KMeansResult local = kMeans(buffer_, init, kmeans_);
+			kmeansMs += msSince(t0);
+			if (local.emptyClusters > 0)
+				return false;
+			km.assignment = g.assignment;
+			for (std::size_t r = 0; r < src.members.size(); ++r)
+				km.assignment[std::size_t(src.members[r])] = slot(local.assignment[r]);
+			km.centers.resize(k + m - 1, 3);
+			km.centers.topRows(k) = g.centers;
+			for (int s = 0; s < m; ++s)
+				km.centers.row(slot(s)) = local.centers.row(s);
+			km.lowerBounds = g.lowerBounds; // only the global path uses them
+		}
+		else
+		{
+			// Paper step c: K-means on all points of the group with the split cluster's centre replaced by the
+			// seeds; warm-started from the previous run (only the seeded centres are new).
+			Eigen::MatrixX3d centers(k + m - 1, 3);
+			centers.topRows(k) = g.centers;
+			std::vector<bool> moved(std::size_t(k + m - 1), false);
+			for (int s = 0; s < m; ++s)
+			{
+				centers.row(slot(s)) = seeds[std::size_t(s)].transpose();
+				moved[std::size_t(slot(s))] = true;
+			}
+			KMeansWarmStart warm;
+			warm.assignment = &g.assignment;
+			warm.lowerBounds = &g.lowerBounds;
+			warm.moved = &moved;
+			Clock::time_point t0 = Clock::now();
+			km = kMeans(g.points, centers, kmeans_, &warm);
+			kmeansMs += msSince(t0);
+			if (km.emptyClusters > 0)
+				return false;
+		}
 		return true;
 	}
 
@@ -372,8 +386,9 @@ void validate(const TriMesh& mesh, const std::vector<Region>& labels, const Body
 }
 
 /// Groups in output order: head, torso, arms, legs (Region order, torso parts merged), whole.
+/// `o` has its lengths in metres (resolveLengths).
 std::vector<Group> makeGroups(const TriMesh& mesh, const std::vector<Region>& labels, const BodyFitOptions& o,
-							  double scale, std::vector<Eigen::MatrixX3d>& initialCenters)
+							  std::vector<Eigen::MatrixX3d>& initialCenters)
 {
 	constexpr int kRegions = int(Region::Whole) + 1;
 	std::array<std::vector<int>, kRegions> byRegion;
@@ -421,7 +436,7 @@ std::vector<Group> makeGroups(const TriMesh& mesh, const std::vector<Region>& la
 			g.vertices = byRegion[std::size_t(r)];
 			initialCenters.push_back(mean(g.vertices));
 		}
-		g.mu = (g.torso || region == Region::Whole ? o.muTorso : o.muLimbs) * scale;
+		g.mu = g.torso || region == Region::Whole ? o.muTorso : o.muLimbs;
 		g.localSplits = region == Region::Whole || !o.reclusterGroup;
 		g.points.resize(Eigen::Index(g.vertices.size()), 3);
 		for (std::size_t i = 0; i < g.vertices.size(); ++i)
@@ -448,10 +463,46 @@ struct CoverStats
 	double ms = 0.0;
 };
 
+/// A piece of a triangle across a cluster boundary: its corners, and the clusters of its triangle's corners
+/// (checked first: they usually contain it).
+struct CoverPiece
+{
+	std::array<Eigen::Vector3d, 3> p;
+	std::array<int, 3> clusters;
+};
+
+/// The triangles across a cluster boundary (all corners fitted; `owner` = cluster id per vertex, -1 unfitted), cut
+/// into sub-triangles: a barycentric grid with the longest edge in pieces no longer than `spacing` (at most
+/// kMaxCoverLevel cuts per edge).
+std::vector<CoverPiece> boundaryPieces(const TriMesh& mesh, const std::vector<int>& owner, double spacing)
+{
+	constexpr int kMaxCoverLevel = 64;
+	std::vector<CoverPiece> pieces;
+	for (int f = 0; f < mesh.F.rows(); ++f)
+	{
+		const std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
+		const std::array<int, 3> c = {owner[std::size_t(v[0])], owner[std::size_t(v[1])], owner[std::size_t(v[2])]};
+		if (c[0] < 0 || c[1] < 0 || c[2] < 0 || (c[0] == c[1] && c[1] == c[2]))
+			continue;
+		const Eigen::Vector3d a = mesh.V.row(v[0]), b = mesh.V.row(v[1]), d = mesh.V.row(v[2]);
+		const double longest = std::max({(b - a).norm(), (d - b).norm(), (a - d).norm()});
+		const int level = std::clamp(int(std::ceil(longest / spacing)), 1, kMaxCoverLevel);
+		auto at = [&](int i, int j) { return Eigen::Vector3d((double(i) * a + double(j) * b + double(level - i - j) * d) / double(level)); };
+		for (int i = 0; i < level; ++i)
+			for (int j = 0; i + j < level; ++j)
+			{
+				pieces.push_back({{at(i, j), at(i + 1, j), at(i, j + 1)}, c});
+				if (i + j + 2 <= level)
+					pieces.push_back({{at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)}, c});
+			}
+	}
+	return pieces;
+}
+
 /// Triangle cover (coverTriangles, see body_fitter.h). The clusters partition the vertices, so every ellipsoid
 /// encloses its own vertices and, by convexity, every triangle whose corners are all its own. A triangle whose corners
 /// belong to different clusters can bulge out between two ellipsoids. Every such triangle is cut on a barycentric grid
-/// into pieces whose edges are at most `spacing` (at most kMaxCoverLevel cuts per edge). A piece that no single
+/// into pieces whose edges are at most `spacing` (boundaryPieces). A piece that no single
 /// ellipsoid contains (all three corners at zeta <= 1 + 1e-9, the MVEE's own enclosure tolerance) goes to the corner
 /// cluster whose ellipsoid comes closest (smallest max zeta of the piece's corners; ties: lower index): its corners
 /// outside that ellipsoid become extra points of the cluster, and the clusters that received points are refitted.
@@ -461,7 +512,6 @@ struct CoverStats
 /// Pieces instead of whole triangles let the ellipsoids grow less (body_fitter.h has the numbers).
 CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner, double spacing)
 {
-	constexpr int kMaxCoverLevel = 64;
 	constexpr double kInside = 1.0 + 1e-9; // the MVEE's own enclosure guarantee (mvee.h)
 	constexpr int maxRounds = 50;
 	const Clock::time_point t0 = Clock::now();
@@ -484,33 +534,7 @@ CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refin
 		return groups[std::size_t(refs[std::size_t(id)].g)].clusters[std::size_t(refs[std::size_t(id)].j)];
 	};
 
-	// The triangles across a cluster boundary (all corners fitted), cut into sub-triangles: a barycentric grid with
-	// the longest edge in pieces no longer than `spacing`. Each piece carries its corners and the clusters of its
-	// triangle's corners (checked first: they usually contain it).
-	struct Piece
-	{
-		std::array<Eigen::Vector3d, 3> p;
-		std::array<int, 3> clusters;
-	};
-	std::vector<Piece> pieces;
-	for (int f = 0; f < mesh.F.rows(); ++f)
-	{
-		const std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
-		const std::array<int, 3> c = {owner[std::size_t(v[0])], owner[std::size_t(v[1])], owner[std::size_t(v[2])]};
-		if (c[0] < 0 || c[1] < 0 || c[2] < 0 || (c[0] == c[1] && c[1] == c[2]))
-			continue;
-		const Eigen::Vector3d a = mesh.V.row(v[0]), b = mesh.V.row(v[1]), d = mesh.V.row(v[2]);
-		const double longest = std::max({(b - a).norm(), (d - b).norm(), (a - d).norm()});
-		const int level = std::clamp(int(std::ceil(longest / spacing)), 1, kMaxCoverLevel);
-		auto at = [&](int i, int j) { return Eigen::Vector3d((double(i) * a + double(j) * b + double(level - i - j) * d) / double(level)); };
-		for (int i = 0; i < level; ++i)
-			for (int j = 0; i + j < level; ++j)
-			{
-				pieces.push_back({{at(i, j), at(i + 1, j), at(i, j + 1)}, c});
-				if (i + j + 2 <= level)
-					pieces.push_back({{at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)}, c});
-			}
-	}
+	const std::vector<CoverPiece> pieces = boundaryPieces(mesh, owner, spacing);
 
 	const int k = int(refs.size());
 	std::vector<Eigen::AlignedBox3d> boxes(refs.size());
@@ -519,18 +543,18 @@ CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refin
 	{
 		for (int id = 0; id < k; ++id)
 			boxes[std::size_t(id)] = cluster(id).fit.ellipsoid.aabb();
-		auto maxZeta = [&](int id, const Piece& piece) {
+		auto maxZeta = [&](int id, const CoverPiece& piece) {
 			const Ellipsoid& e = cluster(id).fit.ellipsoid;
 			return std::max({e.zeta(piece.p[0]), e.zeta(piece.p[1]), e.zeta(piece.p[2])});
 		};
-		auto contains = [&](int id, const Piece& piece) {
+		auto contains = [&](int id, const CoverPiece& piece) {
 			const Eigen::AlignedBox3d& box = boxes[std::size_t(id)];
 			return box.contains(piece.p[0]) && box.contains(piece.p[1]) && box.contains(piece.p[2]) &&
 				   maxZeta(id, piece) <= kInside;
 		};
 		stats.uncovered = 0;
 		std::fill(grew.begin(), grew.end(), 0);
-		for (const Piece& piece : pieces)
+		for (const CoverPiece& piece : pieces)
 		{
 			bool covered = contains(piece.clusters[0], piece) || contains(piece.clusters[1], piece) ||
 						   contains(piece.clusters[2], piece);
@@ -571,133 +595,110 @@ CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refin
 	return stats;
 }
 
-} // namespace
-
-BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const BodyFitOptions& options)
+/// Number of clusters (= ellipsoids) over all groups.
+int clusterCount(const std::vector<Group>& groups)
 {
-	const Clock::time_point t0 = Clock::now();
-	validate(mesh, labels, options);
-	BodyFit result;
+	std::size_t n = 0;
+	for (const Group& g : groups)
+		n += g.clusters.size();
+	return int(n);
+}
 
-	// Height and the scale of the relative quantities.
-	double height = options.height;
-	if (height <= 0.0)
-		height = mesh.V.col(1).maxCoeff() - mesh.V.col(1).minCoeff();
-	if (!(height > 0.0))
-	{
-		height = (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
-		result.warnings.push_back("mesh has no y extent: using the bounding-box diagonal as the height");
-	}
-	const double scale = options.relativeToHeight ? height : 1.0;
+/// The cluster to split next (see body_fitter.h): the largest E_j / mu among the clusters above their threshold
+/// that are not frozen; ties: lower group, then lower cluster index.
+struct SplitTarget
+{
+	int group = -1, cluster = -1; ///< -1: none left to split
+	bool anyAbove = false;        ///< some cluster (frozen or not) is above its threshold
+};
 
-	KMeansOptions kmeans;
-	kmeans.sigma = options.sigma * scale;
-	kmeans.maxIterations = options.kmeansMaxIterations;
-	MveeOptions mvee;
-	mvee.minRadius = options.minRadiusFraction * height;
-	mvee.tolerance = options.mveeTolerance;
-
-	result.source.vertices = mesh.vertexCount();
-	result.source.height = height;
-	result.params.muTorso = options.muTorso;
-	result.params.muLimbs = options.muLimbs;
-	result.params.relativeToHeight = options.relativeToHeight;
-	result.params.sigma = options.sigma;
-	result.params.maxEllipsoids = options.maxEllipsoids;
-	result.params.minRadius = mvee.minRadius;
-	result.params.reclusterGroup = options.reclusterGroup;
-	result.params.coverTriangles = options.coverTriangles;
-	result.params.coverSpacing = options.coverTriangles ? options.coverSpacing : 0.0;
-
-	// (a) Initial clusters: torso k = number of its parts (means of the parts), every other region k = 1.
-	std::vector<Eigen::MatrixX3d> initialCenters;
-	std::vector<Group> groups = makeGroups(mesh, labels, options, scale, initialCenters);
-	Refiner refiner(kmeans, mvee);
+SplitTarget worstCluster(const std::vector<Group>& groups)
+{
+	SplitTarget t;
+	double bestScore = 1.0;
 	for (std::size_t gi = 0; gi < groups.size(); ++gi)
-		refiner.initialise(groups[gi], initialCenters[gi]);
-
-	auto total = [&] {
-		std::size_t n = 0;
-		for (const Group& g : groups)
-			n += g.clusters.size();
-		return int(n);
-	};
-	if (total() > options.maxEllipsoids)
-		result.warnings.push_back("max ellipsoids " + std::to_string(options.maxEllipsoids) + " is below the " +
-								  std::to_string(total()) + " initial ellipsoids of the regions: no refinement");
-
-	// (b)-(e) Refinement: split the worst ellipsoid (relative to its threshold) until all meet their threshold.
-	int attempts = 0;
-	result.status = RefineStatus::Converged;
-	for (;;)
-	{
-		int bestG = -1, bestJ = -1;
-		double bestScore = 1.0;
-		bool anyAbove = false;
-		for (std::size_t gi = 0; gi < groups.size(); ++gi)
-			for (std::size_t j = 0; j < groups[gi].clusters.size(); ++j)
+		for (std::size_t j = 0; j < groups[gi].clusters.size(); ++j)
+		{
+			const Cluster& c = groups[gi].clusters[j];
+			const double score = c.error / groups[gi].mu;
+			if (score <= 1.0)
+				continue;
+			t.anyAbove = true;
+			if (!c.frozen && score > bestScore)
 			{
-				const Cluster& c = groups[gi].clusters[j];
-				const double score = c.error / groups[gi].mu;
-				if (score <= 1.0)
-					continue;
-				anyAbove = true;
-				if (!c.frozen && score > bestScore)
-				{
-					bestScore = score;
-					bestG = int(gi);
-					bestJ = int(j);
-				}
+				bestScore = score;
+				t.group = int(gi);
+				t.cluster = int(j);
 			}
-		if (bestG < 0)
-		{
-			result.status = anyAbove ? RefineStatus::Frozen : RefineStatus::Converged;
-			break;
 		}
-		if (total() >= options.maxEllipsoids)
-		{
-			result.status = RefineStatus::BudgetReached;
-			break;
-		}
+	return t;
+}
+
+/// One split attempt on cluster j of g: the longest axis (the paper), then the next axes, then a four-way split
+/// across the two longest axes within the budget (a cluster wrapped around a corner, e.g. chest + upper arms, often
+/// needs two cuts before its error drops). `ellipsoids` is the current total. Returns whether a split was accepted.
+bool splitCluster(Refiner& refiner, Group& g, int j, const BodyFitOptions& options, int ellipsoids)
+{
+	const Cluster& target = g.clusters[std::size_t(j)];
+	bool accepted = false;
+	for (int rank = 0; rank < options.splitAxes && !accepted; ++rank)
+		accepted = refiner.trySplit(g, j, Refiner::splitSeeds(target, rank, false));
+	if (!accepted && options.quadSplit && ellipsoids + 3 <= options.maxEllipsoids)
+		accepted = refiner.trySplit(g, j, Refiner::splitSeeds(target, 0, true));
+	return accepted;
+}
+
+/// Refinement (paper steps b-e): splits the worst cluster relative to its threshold until every cluster meets its
+/// threshold or is frozen, the budget is reached or the split attempts are used up. Counts the splits in `result`.
+RefineStatus refine(std::vector<Group>& groups, Refiner& refiner, const BodyFitOptions& options, BodyFit& result)
+{
+	for (int attempts = 0;; ++attempts)
+	{
+		const SplitTarget t = worstCluster(groups);
+		if (t.group < 0)
+			return t.anyAbove ? RefineStatus::Frozen : RefineStatus::Converged;
+		if (clusterCount(groups) >= options.maxEllipsoids)
+			return RefineStatus::BudgetReached;
 		if (attempts >= options.maxSplits)
-		{
-			result.status = RefineStatus::SplitCapReached;
-			break;
-		}
-		++attempts;
-		// Try the longest axis (the paper), then the next axes, then a four-way split across the two longest axes
-		// (a cluster wrapped around a corner, e.g. chest + upper arms, often needs two cuts before its error drops).
-		Group& g = groups[std::size_t(bestG)];
-		const Cluster& target = g.clusters[std::size_t(bestJ)];
-		bool accepted = false;
-		for (int rank = 0; rank < options.splitAxes && !accepted; ++rank)
-			accepted = refiner.trySplit(g, bestJ, Refiner::splitSeeds(target, rank, false));
-		if (!accepted && options.quadSplit && total() + 3 <= options.maxEllipsoids)
-			accepted = refiner.trySplit(g, bestJ, Refiner::splitSeeds(target, 0, true));
-		if (accepted)
+			return RefineStatus::SplitCapReached;
+		Group& g = groups[std::size_t(t.group)];
+		if (splitCluster(refiner, g, t.cluster, options, clusterCount(groups)))
 			++result.splitsAccepted;
 		else
 		{
-			groups[std::size_t(bestG)].clusters[std::size_t(bestJ)].frozen = true;
+			g.clusters[std::size_t(t.cluster)].frozen = true;
 			++result.splitsRejected;
 		}
 	}
-	if (options.coverTriangles)
-	{
-		const CoverStats cover = coverTriangles(mesh, groups, refiner, options.coverSpacing * scale);
-		result.coverRounds = cover.rounds;
-		result.coverExtraPoints = cover.extraPoints;
-		result.setTiming("fitting.cover", cover.ms);
-		if (cover.uncovered > 0)
-			result.warnings.push_back(std::to_string(cover.uncovered) +
-									  " piece(s) of skin across ellipsoid boundaries are not inside any ellipsoid");
-	}
-	const double fittingMs = msSince(t0);
+}
 
-	// Report: per-ellipsoid errors (true distances optional), labels, per-vertex ellipsoid.
-	const Clock::time_point tReport = Clock::now();
+/// Runs the triangle cover with pieces of at most `spacing` metres and records its statistics in `result`.
+void applyCover(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner, double spacing, BodyFit& result)
+{
+	const CoverStats cover = coverTriangles(mesh, groups, refiner, spacing);
+	result.coverRounds = cover.rounds;
+	result.coverExtraPoints = cover.extraPoints;
+	result.setTiming("fitting.cover", cover.ms);
+	if (cover.uncovered > 0)
+		result.warnings.push_back(std::to_string(cover.uncovered) +
+								  " piece(s) of skin across ellipsoid boundaries are not inside any ellipsoid");
+}
+
+/// Final clusters that deserve a warning.
+struct ReportCounts
+{
+	int degenerate = 0;   ///< flat or tiny clusters (axes floored to the minimum radius)
+	int notConverged = 0; ///< MVEEs that hit their iteration cap
+	int frozenAbove = 0;  ///< frozen above their threshold
+};
+
+/// The fitted ellipsoids in group order with their error statistics (true distances with `trueDistance`), their
+/// regions and the vertex -> ellipsoid map.
+ReportCounts reportEllipsoids(const TriMesh& mesh, const std::vector<Group>& groups, const std::vector<Region>& labels,
+							  bool trueDistance, BodyFit& result)
+{
+	ReportCounts counts;
 	result.vertexEllipsoid.assign(std::size_t(mesh.vertexCount()), -1);
-	int degenerate = 0, notConverged = 0, frozenAbove = 0;
 	for (const Group& g : groups)
 		for (const Cluster& c : g.clusters)
 		{
@@ -705,7 +706,7 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 			f.ellipsoid = c.fit.ellipsoid;
 			f.region = g.torso ? majorityRegion(g, c, labels) : g.region;
 			f.mveeStatus = c.fit.status;
-			const FitError err = fitError(c.fit.ellipsoid, g.points, c.members, options.trueDistance);
+			const FitError err = fitError(c.fit.ellipsoid, g.points, c.members, trueDistance);
 			f.vertexCount = err.vertexCount;
 			f.radialError = c.error;
 			f.maxRadialError = err.radialMax;
@@ -714,37 +715,137 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 			const int index = int(result.ellipsoids.size());
 			for (int m : c.members)
 				result.vertexEllipsoid[std::size_t(g.vertices[std::size_t(m)])] = index;
-			degenerate += (c.fit.status == FitStatus::Degenerate || c.fit.status == FitStatus::TooFewPoints);
-			notConverged += (c.fit.status == FitStatus::NotConverged || c.fit.status == FitStatus::NumericalIssue);
-			frozenAbove += (c.frozen && c.error > g.mu);
+			counts.degenerate += (c.fit.status == FitStatus::Degenerate || c.fit.status == FitStatus::TooFewPoints);
+			counts.notConverged += (c.fit.status == FitStatus::NotConverged || c.fit.status == FitStatus::NumericalIssue);
+			counts.frozenAbove += (c.frozen && c.error > g.mu);
 			result.ellipsoids.push_back(f);
 		}
-	const double reportMs = msSince(tReport);
+	return counts;
+}
 
-	if (degenerate > 0)
+/// Warnings about the final ellipsoids and about why the refinement stopped.
+void addResultWarnings(const ReportCounts& counts, double minRadius, const BodyFitOptions& options, BodyFit& result)
+{
+	if (counts.degenerate > 0)
 	{
 		char radius[32];
-		std::snprintf(radius, sizeof radius, "%.2f mm", mvee.minRadius * 1000.0);
-		result.warnings.push_back(std::to_string(degenerate) +
+		std::snprintf(radius, sizeof radius, "%.2f mm", minRadius * 1000.0);
+		result.warnings.push_back(std::to_string(counts.degenerate) +
 								  " ellipsoid(s) fitted to flat or tiny clusters: thin axes floored to " + radius);
 	}
-	if (notConverged > 0)
-		result.warnings.push_back(std::to_string(notConverged) +
+	if (counts.notConverged > 0)
+		result.warnings.push_back(std::to_string(counts.notConverged) +
 								  " MVEE(s) hit the iteration cap (rescaled to enclose their points)");
 	if (result.status == RefineStatus::BudgetReached)
 		result.warnings.push_back("ellipsoid budget of " + std::to_string(options.maxEllipsoids) +
 								  " reached before every ellipsoid met its threshold");
 	if (result.status == RefineStatus::SplitCapReached)
 		result.warnings.push_back("split cap of " + std::to_string(options.maxSplits) + " attempts reached");
-	if (frozenAbove > 0)
-		result.warnings.push_back(std::to_string(frozenAbove) +
+	if (counts.frozenAbove > 0)
+		result.warnings.push_back(std::to_string(counts.frozenAbove) +
 								  " ellipsoid(s) stay above their threshold: splitting them did not lower the error");
+}
+
+/// The source size and height and the parameters in the units they were given in (`options`).
+void recordParams(const BodyFitOptions& options, int vertices, double height, double minRadius, BodyFit& result)
+{
+	result.source.vertices = vertices;
+	result.source.height = height;
+	result.params.muTorso = options.muTorso;
+	result.params.muLimbs = options.muLimbs;
+	result.params.relativeToHeight = options.relativeToHeight;
+	result.params.sigma = options.sigma;
+	result.params.maxEllipsoids = options.maxEllipsoids;
+	result.params.minRadius = minRadius;
+	result.params.reclusterGroup = options.reclusterGroup;
+	result.params.coverTriangles = options.coverTriangles;
+	result.params.coverSpacing = options.coverTriangles ? options.coverSpacing : 0.0;
+}
+
+} // namespace
+
+FitLengths FitLengths::of(const BodyFitOptions& options)
+{
+	const bool rel = options.relativeToHeight;
+	return {{options.muTorso, rel}, {options.muLimbs, rel}, {options.sigma, rel}, {options.coverSpacing, rel}};
+}
+
+bool FitLengths::allRelative() const
+{
+	return muTorso.relativeToHeight && muLimbs.relativeToHeight && sigma.relativeToHeight &&
+		   coverSpacing.relativeToHeight;
+}
+
+BodyFitOptions resolveLengths(const BodyFitOptions& options, const FitLengths& lengths, double height)
+{
+	BodyFitOptions out = options;
+	out.muTorso = lengths.muTorso.toMetres(height);
+	out.muLimbs = lengths.muLimbs.toMetres(height);
+	out.sigma = lengths.sigma.toMetres(height);
+	out.coverSpacing = lengths.coverSpacing.toMetres(height);
+	out.relativeToHeight = false;
+	out.height = height;
+	return out;
+}
+
+double bodyHeight(const TriMesh& mesh, double height, std::string* warning)
+{
+	if (height > 0.0)
+		return height;
+	height = mesh.V.col(1).maxCoeff() - mesh.V.col(1).minCoeff();
+	if (height > 0.0)
+		return height;
+	if (warning != nullptr)
+		*warning = "mesh has no y extent: using the bounding-box diagonal as the height";
+	return (mesh.V.colwise().maxCoeff() - mesh.V.colwise().minCoeff()).norm();
+}
+
+BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const BodyFitOptions& options)
+{
+	const Clock::time_point t0 = Clock::now();
+	validate(mesh, labels, options);
+	BodyFit result;
+	std::string heightWarning;
+	const double height = bodyHeight(mesh, options.height, &heightWarning);
+	if (!heightWarning.empty())
+		result.warnings.push_back(heightWarning);
+	const BodyFitOptions metres = resolveLengths(options, FitLengths::of(options), height);
+
+	KMeansOptions kmeans;
+	kmeans.sigma = metres.sigma;
+	kmeans.maxIterations = metres.kmeansMaxIterations;
+	MveeOptions mvee;
+	mvee.minRadius = metres.minRadiusFraction * height;
+	mvee.tolerance = metres.mveeTolerance;
+	recordParams(options, mesh.vertexCount(), height, mvee.minRadius, result);
+
+	// (a) Initial clusters: torso k = number of its parts (means of the parts), every other region k = 1.
+	std::vector<Eigen::MatrixX3d> initialCenters;
+	std::vector<Group> groups = makeGroups(mesh, labels, metres, initialCenters);
+	Refiner refiner(kmeans, mvee);
+	for (std::size_t gi = 0; gi < groups.size(); ++gi)
+		refiner.initialise(groups[gi], initialCenters[gi]);
+	if (clusterCount(groups) > metres.maxEllipsoids)
+		result.warnings.push_back("max ellipsoids " + std::to_string(metres.maxEllipsoids) + " is below the " +
+								  std::to_string(clusterCount(groups)) +
+								  " initial ellipsoids of the regions: no refinement");
+
+	// (b)-(e) Refinement, then the triangle cover.
+	result.status = refine(groups, refiner, metres, result);
+	if (metres.coverTriangles)
+		applyCover(mesh, groups, refiner, metres.coverSpacing, result);
+	const double fittingMs = msSince(t0);
+
+	const Clock::time_point tReport = Clock::now();
+	const ReportCounts counts = reportEllipsoids(mesh, groups, labels, metres.trueDistance, result);
+	const double reportMs = msSince(tReport);
+	addResultWarnings(counts, mvee.minRadius, metres, result);
 
 	result.setTiming("fitting", fittingMs);
 	result.setTiming("fitting.kmeans", refiner.kmeansMs);
 	result.setTiming("fitting.mvee", refiner.mveeMs);
 	result.setTiming("fitting.error", refiner.errorMs);
-	if (options.trueDistance)
+	if (metres.trueDistance)
 		result.setTiming("report", reportMs);
 	return result;
 }

@@ -47,6 +47,103 @@ double unfoldedDiagonal(const Eigen::Vector3d& a, const Eigen::Vector3d& b, cons
 
 } // namespace
 
+namespace
+{
+
+/// Half-edges a -> b (with the vertex opposite them in their face) grouped by a, by counting sort: O(F), no global
+/// sort. A vertex has a handful of half-edges, so twin lookups scan a short list. Faces with an index out of range
+/// or a repeated corner are skipped.
+struct HalfEdges
+{
+	struct HalfEdge
+	{
+		int to, opposite;
+	};
+	std::vector<int> offset;     ///< half-edges of vertex a: [offset[a], offset[a + 1])
+	std::vector<HalfEdge> edges;
+
+	explicit HalfEdges(const TriMesh& mesh)
+	{
+		const int n = mesh.vertexCount();
+		const int m = mesh.faceCount();
+		offset.assign(static_cast<size_t>(n) + 1, 0);
+		auto valid = [&](int f) {
+			for (int k = 0; k < 3; ++k)
+			{
+				const int v = mesh.F(f, k);
+				if (v < 0 || v >= n || v == mesh.F(f, (k + 1) % 3))
+					return false;
+			}
+			return true;
+		};
+		for (int f = 0; f < m; ++f)
+			if (valid(f))
+				for (int k = 0; k < 3; ++k)
+					++offset[size_t(mesh.F(f, k)) + 1];
+		for (int v = 0; v < n; ++v)
+			offset[size_t(v) + 1] += offset[size_t(v)];
+		edges.resize(static_cast<size_t>(offset[size_t(n)]));
+		std::vector<int> fill(offset.begin(), offset.end() - 1);
+		for (int f = 0; f < m; ++f)
+		{
+			if (!valid(f))
+				continue;
+			for (int k = 0; k < 3; ++k)
+				edges[size_t(fill[size_t(mesh.F(f, k))]++)] = {mesh.F(f, (k + 1) % 3), mesh.F(f, (k + 2) % 3)};
+		}
+	}
+
+	/// Number of half-edges a -> b, and the opposite vertex of the last one found.
+	int find(int a, int b, int* opposite) const
+	{
+		int count = 0;
+		for (int i = offset[size_t(a)]; i < offset[size_t(a) + 1]; ++i)
+		{
+			if (edges[size_t(i)].to == b)
+			{
+				++count;
+				*opposite = edges[size_t(i)].opposite;
+			}
+		}
+		return count;
+	}
+};
+
+/// The edges of the graph: every mesh edge once, plus (options.faceDiagonals) the unfolded diagonal across every
+/// manifold interior edge.
+std::vector<WeightedEdge> graphEdges(const TriMesh& mesh, const GeodesicOptions& options)
+{
+	const int n = mesh.vertexCount();
+	const HalfEdges he(mesh);
+	std::vector<WeightedEdge> edges;
+	edges.reserve(he.edges.size() * (options.faceDiagonals ? 2 : 1));
+	for (int a = 0; a < n; ++a)
+	{
+		for (int i = he.offset[size_t(a)]; i < he.offset[size_t(a) + 1]; ++i)
+		{
+			const int b = he.edges[size_t(i)].to;
+			int d = -1;
+			const int twins = he.find(b, a, &d);
+			// Each undirected edge once: from its smaller end, or from the only side that has a half-edge.
+			if (a > b && twins > 0)
+				continue;
+			const Eigen::Vector3d pa = mesh.V.row(a).transpose(), pb = mesh.V.row(b).transpose();
+			edges.push_back({std::min(a, b), std::max(a, b), (pa - pb).norm(), 1});
+			// A manifold interior edge has exactly one half-edge each way; others get no diagonal.
+			const int c = he.edges[size_t(i)].opposite;
+			if (options.faceDiagonals && twins == 1 && c != d)
+			{
+				const double len = unfoldedDiagonal(pa, pb, mesh.V.row(c).transpose(), mesh.V.row(d).transpose());
+				if (len > 0.0)
+					edges.push_back({std::min(c, d), std::max(c, d), len, 0});
+			}
+		}
+	}
+	return edges;
+}
+
+} // namespace
+
 GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& options)
 	: GeodesicSolver(mesh, options, {})
 {
@@ -56,80 +153,7 @@ GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& optio
 	const std::vector<std::pair<int, int>>& bridges)
 {
 	const int n = mesh.vertexCount();
-	const int m = mesh.faceCount();
-
-	// Half-edges a -> b (with the vertex opposite them in their face) grouped by a, by counting sort: O(F), no
-	// global sort. A vertex has a handful of half-edges, so twin lookups scan a short list.
-	std::vector<int> heOffset(static_cast<size_t>(n) + 1, 0);
-	auto valid = [&](int f) {
-		for (int k = 0; k < 3; ++k)
-		{
-			const int v = mesh.F(f, k);
-			if (v < 0 || v >= n || v == mesh.F(f, (k + 1) % 3))
-				return false;
-		}
-		return true;
-	};
-	for (int f = 0; f < m; ++f)
-		if (valid(f))
-			for (int k = 0; k < 3; ++k)
-				++heOffset[size_t(mesh.F(f, k)) + 1];
-	for (int v = 0; v < n; ++v)
-		heOffset[size_t(v) + 1] += heOffset[size_t(v)];
-	struct HalfEdge
-	{
-		int to, opposite;
-	};
-	std::vector<HalfEdge> halfEdges(static_cast<size_t>(heOffset[size_t(n)]));
-	{
-		std::vector<int> fill(heOffset.begin(), heOffset.end() - 1);
-		for (int f = 0; f < m; ++f)
-		{
-			if (!valid(f))
-				continue;
-			for (int k = 0; k < 3; ++k)
-				halfEdges[size_t(fill[size_t(mesh.F(f, k))]++)] = {mesh.F(f, (k + 1) % 3), mesh.F(f, (k + 2) % 3)};
-		}
-	}
-	// Number of half-edges a -> b, and the opposite vertex of the last one found.
-	auto find = [&](int a, int b, int* opposite) {
-		int count = 0;
-		for (int i = heOffset[size_t(a)]; i < heOffset[size_t(a) + 1]; ++i)
-		{
-			if (halfEdges[size_t(i)].to == b)
-			{
-				++count;
-				*opposite = halfEdges[size_t(i)].opposite;
-			}
-		}
-		return count;
-	};
-
-	std::vector<WeightedEdge> edges;
-	edges.reserve(halfEdges.size() * (options.faceDiagonals ? 2 : 1));
-	for (int a = 0; a < n; ++a)
-	{
-		for (int i = heOffset[size_t(a)]; i < heOffset[size_t(a) + 1]; ++i)
-		{
-			const int b = halfEdges[size_t(i)].to;
-			int d = -1;
-			const int twins = find(b, a, &d);
-			// Each undirected edge once: from its smaller end, or from the only side that has a half-edge.
-			if (a > b && twins > 0)
-				continue;
-			const Eigen::Vector3d pa = mesh.V.row(a).transpose(), pb = mesh.V.row(b).transpose();
-			edges.push_back({std::min(a, b), std::max(a, b), (pa - pb).norm(), 1});
-			// A manifold interior edge has exactly one half-edge each way; others get no diagonal.
-			const int c = halfEdges[size_t(i)].opposite;
-			if (options.faceDiagonals && twins == 1 && c != d)
-			{
-				const double len = unfoldedDiagonal(pa, pb, mesh.V.row(c).transpose(), mesh.V.row(d).transpose());
-				if (len > 0.0)
-					edges.push_back({std::min(c, d), std::max(c, d), len, 0});
-			}
-		}
-	}
-
+	std::vector<WeightedEdge> edges = graphEdges(mesh, options);
 	for (const auto& [a, b] : bridges)
 		if (a >= 0 && a < n && b >= 0 && b < n && a != b)
 			edges.push_back({std::min(a, b), std::max(a, b), (mesh.V.row(a) - mesh.V.row(b)).norm(), 1});

@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <tuple>
 
 namespace bodyfit
@@ -300,79 +301,129 @@ Segmentation wholeBodySegmentation(const TriMesh& mesh, const std::string& reaso
 namespace
 {
 
-/// The segmentation proper; returns a non-empty reason when the mesh does not look like a standing human.
-/// Fills `seg` (labels, features, measures) as far as it got.
-std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options, Segmentation& seg)
+/// Coarse parts before the limbs and the torso are cut into regions.
+enum Part
 {
-	const int n = mesh.vertexCount();
-	// The body = its largest component and the separate parts joined to it (bridged: one geodesic graph); enclosed
-	// parts (eyes, teeth) and detached ones stay out of the geodesics and take the label of the nearest body vertex.
-	const ComponentLayout layout = analyzeComponents(mesh, options.components);
-	const int componentCount = int(layout.components.size());
-	std::vector<int> component(size_t(n), 0); // 0 = on the body
-	int mainCount = 0;
-	for (int v = 0; v < n; ++v)
+	kHead,
+	kArmL,
+	kArmR,
+	kLegL,
+	kLegR,
+	kTorso
+};
+
+/// What the steps of segmentInto share. Each step reads what the earlier ones found and returns a non-empty reason
+/// when the mesh does not look like a standing human.
+struct SegmentationWork
+{
+	SegmentationWork(const TriMesh& m, const SegmentationOptions& o, Segmentation& s)
+		: mesh(m), options(o), seg(s), n(m.vertexCount())
 	{
-		component[size_t(v)] = layout.onBody(v) ? 0 : 1;
-		mainCount += 1 - component[size_t(v)];
 	}
-	if (mainCount < 100)
-		return "too few vertices for a body (" + std::to_string(mainCount) + " on the body, need 100)";
+
+	const TriMesh& mesh;
+	const SegmentationOptions& options;
+	Segmentation& seg;
+	int n;
+
+	ComponentLayout layout;     ///< components: body, attached, inside, detached (components.h)
+	std::vector<int> component; ///< 0 = on the body (its largest component and the parts joined to it), 1 = not
+	int componentCount = 0;
+	int mainCount = 0;          ///< vertices on the body
+	double yMin = 0.0, H = 0.0; ///< floor and height of the body
+	std::vector<double> area;   ///< per vertex
+	double totalArea = 0.0;     ///< of the main component
+	std::optional<GeodesicSolver> solver;
+	int center = -1;            ///< main-component vertex nearest the area centroid
+	std::array<Field, 5> fields; ///< geodesic field of every extremity, in pick order
+	std::array<int, 5> ends{};   ///< the extremities, in pick order
+	const Field* head = nullptr;
+	const Field* handL = nullptr;
+	const Field* handR = nullptr;
+	const Field* footL = nullptr;
+	const Field* footR = nullptr;
+	std::vector<double> neckDepth; ///< along the body axis below the head top (near the head; infinity elsewhere)
+	std::vector<char> inHead;
+	std::vector<char> part;      ///< Part per vertex
+	std::array<double, 6> partArea{};
+	int contested = 0;           ///< vertices claimed by more than one part
+
+	double y(int v) const { return mesh.V(v, 1); }
+	double heightOf(int v) const { return (y(v) - yMin) / H; }
+};
+
+/// Components, the body's size and height. The body = the largest component and the separate parts joined to it
+/// (bridged: one geodesic graph); enclosed parts (eyes, teeth) and detached ones stay out of the geodesics and take
+/// the label of the nearest body vertex (labelOtherComponents).
+std::string measureMainComponent(SegmentationWork& w)
+{
+	w.layout = analyzeComponents(w.mesh, w.options.components);
+	w.componentCount = int(w.layout.components.size());
+	w.component.assign(size_t(w.n), 0);
+	for (int v = 0; v < w.n; ++v)
+	{
+		w.component[size_t(v)] = w.layout.onBody(v) ? 0 : 1;
+		w.mainCount += 1 - w.component[size_t(v)];
+	}
+	if (w.mainCount < 100)
+		return "too few vertices for a body (" + std::to_string(w.mainCount) + " on the body, need 100)";
 
 	double yMin = std::numeric_limits<double>::infinity(), yMax = -yMin;
-	for (int v = 0; v < n; ++v)
+	for (int v = 0; v < w.n; ++v)
 	{
-		if (component[size_t(v)] != 0)
+		if (w.component[size_t(v)] != 0)
 			continue;
-		yMin = std::min(yMin, mesh.V(v, 1));
-		yMax = std::max(yMax, mesh.V(v, 1));
+		yMin = std::min(yMin, w.mesh.V(v, 1));
+		yMax = std::max(yMax, w.mesh.V(v, 1));
 	}
-	const double H = yMax - yMin;
-	seg.height = H;
-	if (!(H > 0.0))
+	w.yMin = yMin;
+	w.H = yMax - yMin;
+	w.seg.height = w.H;
+	if (!(w.H > 0.0))
 		return "the mesh has no height (flat in y)";
+	return {};
+}
 
-	const std::vector<double> area = vertexAreas(mesh);
-	GeodesicSolver solver(mesh, options.geodesics, layout.bridges);
-
-	// Centre: the vertex of the main component nearest its area-weighted centroid.
+/// Centre: the vertex of the main component nearest its area-weighted centroid.
+std::string findCentre(SegmentationWork& w)
+{
 	Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-	double totalArea = 0.0;
-	for (int v = 0; v < n; ++v)
+	for (int v = 0; v < w.n; ++v)
 	{
-		if (component[size_t(v)] != 0)
+		if (w.component[size_t(v)] != 0)
 			continue;
-		centroid += area[size_t(v)] * vertex(mesh, v);
-		totalArea += area[size_t(v)];
+		centroid += w.area[size_t(v)] * vertex(w.mesh, v);
+		w.totalArea += w.area[size_t(v)];
 	}
-	if (!(totalArea > 0.0))
+	if (!(w.totalArea > 0.0))
 		return "the mesh has zero surface area";
-	centroid /= totalArea;
-	int center = -1;
+	centroid /= w.totalArea;
 	double bestCenter = std::numeric_limits<double>::infinity();
-	for (int v = 0; v < n; ++v)
+	for (int v = 0; v < w.n; ++v)
 	{
-		const double d2 = (vertex(mesh, v) - centroid).squaredNorm();
-		if (component[size_t(v)] == 0 && d2 < bestCenter)
+		const double d2 = (vertex(w.mesh, v) - centroid).squaredNorm();
+		if (w.component[size_t(v)] == 0 && d2 < bestCenter)
 		{
 			bestCenter = d2;
-			center = v;
+			w.center = v;
 		}
 	}
+	return {};
+}
 
-	// End feature points: farthest-point sampling in the geodesic metric, seeded with the centre. On a human the
-	// five extremities (head top, two fingertips, two toe tips) are each farther from everything chosen before
-	// than any other point; the field of every chosen point is kept for the rest of the pipeline.
+/// End feature points: farthest-point sampling in the geodesic metric, seeded with the centre. On a human the
+/// five extremities (head top, two fingertips, two toe tips) are each farther from everything chosen before
+/// than any other point; the field of every chosen point is kept for the rest of the pipeline.
+std::string findExtremities(SegmentationWork& w)
+{
 	std::vector<double> centerField;
-	solver.compute(center, centerField);
+	w.solver->compute(w.center, centerField);
 	std::vector<double> nearest = centerField;
-	std::array<Field, 5> fields;
-	std::array<int, 5> ends{};
 	for (int k = 0; k < 5; ++k)
 	{
 		int far = -1;
 		double farDistance = -1.0;
-		for (int v = 0; v < n; ++v)
+		for (int v = 0; v < w.n; ++v)
 		{
 			if (std::isfinite(nearest[size_t(v)]) && nearest[size_t(v)] > farDistance)
 			{
@@ -382,14 +433,20 @@ std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options,
 		}
 		if (far < 0 || !(farDistance > 0.0))
 			return "fewer than five extremities found";
-		ends[size_t(k)] = far;
-		solver.compute(far, fields[size_t(k)].d, &fields[size_t(k)].pred);
-		for (int v = 0; v < n; ++v)
-			nearest[size_t(v)] = std::min(nearest[size_t(v)], fields[size_t(k)].d[size_t(v)]);
+		w.ends[size_t(k)] = far;
+		w.solver->compute(far, w.fields[size_t(k)].d, &w.fields[size_t(k)].pred);
+		for (int v = 0; v < w.n; ++v)
+			nearest[size_t(v)] = std::min(nearest[size_t(v)], w.fields[size_t(k)].d[size_t(v)]);
 	}
+	return {};
+}
 
-	// Classify: feet = the two lowest, head = the highest of the other three, hands = the remaining two;
-	// the subject's left is +x.
+/// Classify: feet = the two lowest, head = the highest of the other three, hands = the remaining two; the subject's
+/// left is +x. Then the checks that catch most non-humans early (the remaining ones fail the later checks).
+std::string classifyExtremities(SegmentationWork& w)
+{
+	const TriMesh& mesh = w.mesh;
+	const std::array<int, 5>& ends = w.ends;
 	std::array<int, 5> order = {0, 1, 2, 3, 4};
 	std::sort(order.begin(), order.end(), [&](int a, int b) {
 		const Eigen::RowVector3d pa = mesh.V.row(ends[size_t(a)]), pb = mesh.V.row(ends[size_t(b)]);
@@ -404,35 +461,41 @@ std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options,
 	byX(order[0], order[1], &iFootL, &iFootR);
 	byX(order[2], order[3], &iHandL, &iHandR);
 	const int iHead = order[4];
-	const Field& head = fields[size_t(iHead)];
-	const Field& handL = fields[size_t(iHandL)];
-	const Field& handR = fields[size_t(iHandR)];
-	const Field& footL = fields[size_t(iFootL)];
-	const Field& footR = fields[size_t(iFootR)];
-	FeaturePoints& fp = seg.features;
+	w.head = &w.fields[size_t(iHead)];
+	w.handL = &w.fields[size_t(iHandL)];
+	w.handR = &w.fields[size_t(iHandR)];
+	w.footL = &w.fields[size_t(iFootL)];
+	w.footR = &w.fields[size_t(iFootR)];
+	FeaturePoints& fp = w.seg.features;
 	fp.headTop = ends[size_t(iHead)];
 	fp.handLeft = ends[size_t(iHandL)];
 	fp.handRight = ends[size_t(iHandR)];
 	fp.footLeft = ends[size_t(iFootL)];
 	fp.footRight = ends[size_t(iFootR)];
-	auto y = [&](int v) { return mesh.V(v, 1); };
-	auto heightOf = [&](int v) { return (y(v) - yMin) / H; };
 
-	// Checks that catch most non-humans early (the remaining ones fail the region checks below).
-	if (options.validate)
+	if (w.options.validate)
 	{
-		if (heightOf(fp.footLeft) > 0.12 || heightOf(fp.footRight) > 0.12)
+		if (w.heightOf(fp.footLeft) > 0.12 || w.heightOf(fp.footRight) > 0.12)
 			return "the two lowest extremities are not at the floor (not a standing figure)";
-		if (heightOf(fp.headTop) < 0.88)
+		if (w.heightOf(fp.headTop) < 0.88)
 			return "no extremity at the top of the mesh (no head, or arms above the head)";
-		if (heightOf(fp.handLeft) < 0.2 || heightOf(fp.handRight) < 0.2)
+		if (w.heightOf(fp.handLeft) < 0.2 || w.heightOf(fp.handRight) < 0.2)
 			return "two extremities besides the feet touch the ground (four legs?)";
 	}
+	return {};
+}
 
-	// Perineum: the paper takes the half-way point of the geodesic between the toe tips. We take the highest vertex
-	// on the middle part of the shortest toe-to-toe paths (the crotch itself, also when the legs are not
-	// symmetric). "On a shortest path" = d_left + d_right within 0.5% H of the toe-to-toe distance: a set, not one
-	// traced path, so the choice does not depend on which foot the path is traced from (mirror symmetry).
+/// Perineum: the paper takes the half-way point of the geodesic between the toe tips. We take the highest vertex
+/// on the middle part of the shortest toe-to-toe paths (the crotch itself, also when the legs are not
+/// symmetric). "On a shortest path" = d_left + d_right within 0.5% H of the toe-to-toe distance: a set, not one
+/// traced path, so the choice does not depend on which foot the path is traced from (mirror symmetry).
+/// Also the leg lengths (perineum -> toe tips).
+std::string findPerineum(SegmentationWork& w)
+{
+	FeaturePoints& fp = w.seg.features;
+	const Field& footL = *w.footL;
+	const Field& footR = *w.footR;
+	const double H = w.H;
 	const double toeToToe = footL.d[size_t(fp.footRight)];
 	if (!std::isfinite(toeToToe))
 		return "the feet are not connected";
@@ -440,13 +503,13 @@ std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options,
 		// Ties (a mirror pair at the same height) are broken by geometry, never by vertex index: nearer the middle
 		// of the path, then larger x.
 		std::array<double, 3> best = {-std::numeric_limits<double>::infinity(), 0.0, 0.0};
-		for (int v = 0; v < n; ++v)
+		for (int v = 0; v < w.n; ++v)
 		{
 			const double dl = footL.d[size_t(v)], dr = footR.d[size_t(v)];
 			if (!(dl + dr <= toeToToe + 0.005 * H))
 				continue;
 			const double s = dl / (dl + dr);
-			const std::array<double, 3> key = {y(v), -std::abs(dl - dr), mesh.V(v, 0)};
+			const std::array<double, 3> key = {w.y(v), -std::abs(dl - dr), w.mesh.V(v, 0)};
 			if (s >= 0.3 && s <= 0.7 && key > best)
 			{
 				best = key;
@@ -456,120 +519,144 @@ std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options,
 	}
 	if (fp.perineum < 0)
 		return "no path between the feet";
-	SegmentationMeasures& m = seg.measures;
+	SegmentationMeasures& m = w.seg.measures;
 	m.legLengthLeft = footL.d[size_t(fp.perineum)];
 	m.legLengthRight = footR.d[size_t(fp.perineum)];
-	if (options.validate)
+	if (w.options.validate)
 	{
-		const double crotch = heightOf(fp.perineum);
+		const double crotch = w.heightOf(fp.perineum);
 		if (crotch < 0.3 || crotch > 0.65)
 			return "the point between the legs is at " + std::to_string(int(std::lround(crotch * 100))) +
 				   "% of the height (a standing human: 45-50%)";
 	}
+	return {};
+}
 
-	// Armpit: the geodesic from a fingertip to the toe tip on the same side runs along the arm, round the armpit
-	// and down the flank. The armpit is the corner of that path: the vertex farthest from the chord between a point
-	// near the elbow (hand + forearm = 0.254 H from the fingertip) and a point on the flank 0.1 H above the leg cut.
-	auto findArmpit = [&](const Field& hand, int footPoint, const Field& foot, double legLength, int* armpit) {
-		const std::vector<int> path = tracePath(hand.pred, footPoint);
-		int a = -1, b = -1;
-		for (int i = 0; i < int(path.size()); ++i)
-		{
-			const int v = path[size_t(i)];
-			if (a < 0 && hand.d[size_t(v)] >= 0.254 * H)
-				a = i;
-			if (b < 0 && a >= 0 && foot.d[size_t(v)] <= legLength + 0.1 * H)
-				b = i;
-		}
-		double depth = 0.0;
-		const int i = deepestOnChord(mesh, path, a, b, &depth);
-		*armpit = i >= 0 ? path[size_t(i)] : -1;
-		return depth;
-	};
-	const double depthL = findArmpit(handL, fp.footLeft, footL, m.legLengthLeft, &fp.armpitLeft);
-	const double depthR = findArmpit(handR, fp.footRight, footR, m.legLengthRight, &fp.armpitRight);
+/// Armpit: the geodesic from a fingertip to the toe tip on the same side runs along the arm, round the armpit
+/// and down the flank. The armpit is the corner of that path: the vertex farthest from the chord between a point
+/// near the elbow (hand + forearm = 0.254 H from the fingertip) and a point on the flank 0.1 H above the leg cut.
+/// Returns the corner's depth (its distance from the chord); `*armpit` = -1 when there is none.
+double findArmpit(const SegmentationWork& w, const Field& hand, int footPoint, const Field& foot, double legLength,
+				  int* armpit)
+{
+	const double H = w.H;
+	const std::vector<int> path = tracePath(hand.pred, footPoint);
+	int a = -1, b = -1;
+	for (int i = 0; i < int(path.size()); ++i)
+	{
+		const int v = path[size_t(i)];
+		if (a < 0 && hand.d[size_t(v)] >= 0.254 * H)
+			a = i;
+		if (b < 0 && a >= 0 && foot.d[size_t(v)] <= legLength + 0.1 * H)
+			b = i;
+	}
+	double depth = 0.0;
+	const int i = deepestOnChord(w.mesh, path, a, b, &depth);
+	*armpit = i >= 0 ? path[size_t(i)] : -1;
+	return depth;
+}
+
+/// Both armpits and the arm lengths (armpit -> fingertip).
+std::string findArmpits(SegmentationWork& w)
+{
+	FeaturePoints& fp = w.seg.features;
+	SegmentationMeasures& m = w.seg.measures;
+	const double depthL = findArmpit(w, *w.handL, fp.footLeft, *w.footL, m.legLengthLeft, &fp.armpitLeft);
+	const double depthR = findArmpit(w, *w.handR, fp.footRight, *w.footR, m.legLengthRight, &fp.armpitRight);
 	if (fp.armpitLeft < 0 || fp.armpitRight < 0)
 		return "no armpit found between the arms and the flanks";
-	if (options.validate && std::min(depthL, depthR) < 0.02 * H)
+	if (w.options.validate && std::min(depthL, depthR) < 0.02 * w.H)
 		return "the arms do not branch off the torso (no armpit corner)";
-	m.armLengthLeft = handL.d[size_t(fp.armpitLeft)];
-	m.armLengthRight = handR.d[size_t(fp.armpitRight)];
+	m.armLengthLeft = w.handL->d[size_t(fp.armpitLeft)];
+	m.armLengthRight = w.handR->d[size_t(fp.armpitRight)];
+	return {};
+}
 
-	// Middle-layer cuts: the narrowest cross-section in a band around the proportion-based prediction.
-	const double step = options.isolineStep * H;
-	m.elbowDistanceLeft = narrowestLevel(mesh, handL.d, options.elbowFraction * m.armLengthLeft,
-		options.elbowBand * m.armLengthLeft, step);
-	m.elbowDistanceRight = narrowestLevel(mesh, handR.d, options.elbowFraction * m.armLengthRight,
-		options.elbowBand * m.armLengthRight, step);
-	m.kneeDistanceLeft = narrowestLevel(mesh, footL.d, options.kneeFraction * m.legLengthLeft,
-		options.kneeBand * m.legLengthLeft, step);
-	m.kneeDistanceRight = narrowestLevel(mesh, footR.d, options.kneeFraction * m.legLengthRight,
-		options.kneeBand * m.legLengthRight, step);
+/// Middle-layer cuts: elbows and knees at the narrowest cross-section in a band around the proportion-based
+/// prediction.
+void cutElbowsAndKnees(SegmentationWork& w)
+{
+	const SegmentationOptions& o = w.options;
+	FeaturePoints& fp = w.seg.features;
+	SegmentationMeasures& m = w.seg.measures;
+	const Field& handL = *w.handL;
+	const Field& handR = *w.handR;
+	const Field& footL = *w.footL;
+	const Field& footR = *w.footR;
+	const double step = o.isolineStep * w.H;
+	m.elbowDistanceLeft =
+		narrowestLevel(w.mesh, handL.d, o.elbowFraction * m.armLengthLeft, o.elbowBand * m.armLengthLeft, step);
+	m.elbowDistanceRight =
+		narrowestLevel(w.mesh, handR.d, o.elbowFraction * m.armLengthRight, o.elbowBand * m.armLengthRight, step);
+	m.kneeDistanceLeft =
+		narrowestLevel(w.mesh, footL.d, o.kneeFraction * m.legLengthLeft, o.kneeBand * m.legLengthLeft, step);
+	m.kneeDistanceRight =
+		narrowestLevel(w.mesh, footR.d, o.kneeFraction * m.legLengthRight, o.kneeBand * m.legLengthRight, step);
 	fp.elbowLeft = pathVertexAt(tracePath(handL.pred, fp.armpitLeft), handL.d, m.elbowDistanceLeft);
 	fp.elbowRight = pathVertexAt(tracePath(handR.pred, fp.armpitRight), handR.d, m.elbowDistanceRight);
 	fp.kneeLeft = pathVertexAt(tracePath(footL.pred, fp.perineum), footL.d, m.kneeDistanceLeft);
 	fp.kneeRight = pathVertexAt(tracePath(footR.pred, fp.perineum), footR.d, m.kneeDistanceRight);
+}
 
-	// Neck: a planar cut perpendicular to the body axis (perineum -> head top). A geodesic isoline from the head top
-	// would run through the mouth in front (the path over the face is longer than over the skull), so the head is
-	// cut by the narrowest planar cross-section below the chin instead. Only the surface near the head
-	// (geodesically within 0.35 H of the head top) is sliced, so raised hands never enter the profile.
+/// Neck: a planar cut perpendicular to the body axis (perineum -> head top). A geodesic isoline from the head top
+/// would run through the mouth in front (the path over the face is longer than over the skull), so the head is
+/// cut by the narrowest planar cross-section below the chin instead. Only the surface near the head
+/// (geodesically within 0.35 H of the head top) is sliced, so raised hands never enter the profile.
+/// Head = the piece above the cut that contains the head top.
+void cutHead(SegmentationWork& w)
+{
+	const TriMesh& mesh = w.mesh;
+	const SegmentationOptions& o = w.options;
+	FeaturePoints& fp = w.seg.features;
+	SegmentationMeasures& m = w.seg.measures;
+	const double H = w.H;
 	const Eigen::Vector3d top = vertex(mesh, fp.headTop);
 	const Eigen::Vector3d bodyUp = (top - vertex(mesh, fp.perineum)).normalized();
-	std::vector<double> depth(static_cast<size_t>(n), std::numeric_limits<double>::infinity());
-	for (int v = 0; v < n; ++v)
-		if (head.d[size_t(v)] < 0.35 * H)
+	std::vector<double>& depth = w.neckDepth;
+	depth.assign(static_cast<size_t>(w.n), std::numeric_limits<double>::infinity());
+	for (int v = 0; v < w.n; ++v)
+		if (w.head->d[size_t(v)] < 0.35 * H)
 			depth[size_t(v)] = (top - vertex(mesh, v)).dot(bodyUp);
-	m.neckDistance = narrowestLevel(mesh, depth, 0.5 * (options.neckBandMin + options.neckBandMax) * H,
-		0.5 * (options.neckBandMax - options.neckBandMin) * H, step);
-	fp.neck = pathVertexAt(tracePath(head.pred, fp.perineum), depth, m.neckDistance);
-	// Head = the piece above the cut that contains the head top.
-	std::vector<char> inHead(static_cast<size_t>(n), 0);
+	m.neckDistance = narrowestLevel(mesh, depth, 0.5 * (o.neckBandMin + o.neckBandMax) * H,
+		0.5 * (o.neckBandMax - o.neckBandMin) * H, o.isolineStep * H);
+	fp.neck = pathVertexAt(tracePath(w.head->pred, fp.perineum), depth, m.neckDistance);
+	std::vector<char>& inHead = w.inHead;
+	inHead.assign(static_cast<size_t>(w.n), 0);
+	std::vector<int> stack(1, fp.headTop);
+	inHead[size_t(fp.headTop)] = 1;
+	while (!stack.empty())
 	{
-		std::vector<int> stack(1, fp.headTop);
-		inHead[size_t(fp.headTop)] = 1;
-		while (!stack.empty())
+		const int v = stack.back();
+		stack.pop_back();
+		const auto [begin, end] = w.solver->neighbors(v);
+		for (const int* x = begin; x != end; ++x)
 		{
-			const int v = stack.back();
-			stack.pop_back();
-			const auto [begin, end] = solver.neighbors(v);
-			for (const int* w = begin; w != end; ++w)
+			if (w.solver->isMeshEdge(x) && !inHead[size_t(*x)] && depth[size_t(*x)] < m.neckDistance)
 			{
-				if (solver.isMeshEdge(w) && !inHead[size_t(*w)] && depth[size_t(*w)] < m.neckDistance)
-				{
-					inHead[size_t(*w)] = 1;
-					stack.push_back(*w);
-				}
+				inHead[size_t(*x)] = 1;
+				stack.push_back(*x);
 			}
 		}
 	}
+}
 
-	// Regions: the head as cut above; a vertex belongs to an arm / a leg when its geodesic distance to that end point
-	// is below the limb's length; where two parts claim it, the one with the smaller relative distance wins.
-	// The rest is torso.
-	enum Part
-	{
-		kHead,
-		kArmL,
-		kArmR,
-		kLegL,
-		kLegR,
-		kTorso
-	};
-	const std::array<const Field*, 5> partField = {&head, &handL, &handR, &footL, &footR};
+/// Parts: the head as cut above; a vertex belongs to an arm / a leg when its geodesic distance to that end point
+/// is below the limb's length; where two parts claim it, the one with the smaller relative distance wins. The rest
+/// is torso. Then the checks that the parts have a human layout.
+std::string assignParts(SegmentationWork& w)
+{
+	const SegmentationMeasures& m = w.seg.measures;
+	const std::array<const Field*, 5> partField = {w.head, w.handL, w.handR, w.footL, w.footR};
 	const std::array<double, 5> partLength = {
 		m.neckDistance, m.armLengthLeft, m.armLengthRight, m.legLengthLeft, m.legLengthRight};
-	std::vector<Region>& labels = seg.labels;
-	labels.assign(size_t(n), Region::Whole);
-	std::vector<char> part(static_cast<size_t>(n), char(kTorso));
-	int contested = 0;
-	std::array<double, 6> partArea{};
-	for (int v = 0; v < n; ++v)
+	w.part.assign(static_cast<size_t>(w.n), char(kTorso));
+	for (int v = 0; v < w.n; ++v)
 	{
-		if (component[size_t(v)] != 0)
+		if (w.component[size_t(v)] != 0)
 			continue;
-		int best = inHead[size_t(v)] ? int(kHead) : int(kTorso), claims = inHead[size_t(v)] ? 1 : 0;
-		double bestRatio = inHead[size_t(v)] ? 0.0 : 1.0;
+		const bool inHead = w.inHead[size_t(v)] != 0;
+		int best = inHead ? int(kHead) : int(kTorso), claims = inHead ? 1 : 0;
+		double bestRatio = inHead ? 0.0 : 1.0;
 		for (int p = kArmL; p <= kLegR; ++p)
 		{
 			const double ratio = partField[size_t(p)]->d[size_t(v)] / partLength[size_t(p)];
@@ -583,41 +670,53 @@ std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options,
 				}
 			}
 		}
-		contested += claims > 1 ? 1 : 0;
-		part[size_t(v)] = char(best);
-		partArea[size_t(best)] += area[size_t(v)];
+		w.contested += claims > 1 ? 1 : 0;
+		w.part[size_t(v)] = char(best);
+		w.partArea[size_t(best)] += w.area[size_t(v)];
 	}
-	if (options.validate)
+	if (!w.options.validate)
+		return {};
+	if (w.contested > w.mainCount / 50)
+		return "limb regions overlap on " + std::to_string(w.contested) + " vertices (not a human layout)";
+	// A limb is a tube: its area is about 2 pi r L, far below the L^2-scale area of a blob's cap.
+	const std::array<const char*, 4> limbName = {"left arm", "right arm", "left leg", "right leg"};
+	for (int p = kArmL; p <= kLegR; ++p)
 	{
-		if (contested > mainCount / 50)
-			return "limb regions overlap on " + std::to_string(contested) + " vertices (not a human layout)";
-		// A limb is a tube: its area is about 2 pi r L, far below the L^2-scale area of a blob's cap.
-		const std::array<const char*, 4> limbName = {"left arm", "right arm", "left leg", "right leg"};
-		for (int p = kArmL; p <= kLegR; ++p)
-		{
-			const double slender = partArea[size_t(p)] / (partLength[size_t(p)] * partLength[size_t(p)]);
-			if (slender > 1.2)
-				return std::string("the ") + limbName[size_t(p - kArmL)] + " is not a limb (area / length^2 = " +
-					   std::to_string(slender).substr(0, 4) + ", a limb is below 1)";
-		}
-		const double torsoShare = partArea[kTorso] / totalArea;
-		if (torsoShare < 0.15 || torsoShare > 0.7)
-			return "the torso covers " + std::to_string(int(std::lround(torsoShare * 100))) +
-				   "% of the surface (a human: 30-50%)";
+		const double slender = w.partArea[size_t(p)] / (partLength[size_t(p)] * partLength[size_t(p)]);
+		if (slender > 1.2)
+			return std::string("the ") + limbName[size_t(p - kArmL)] + " is not a limb (area / length^2 = " +
+				   std::to_string(slender).substr(0, 4) + ", a limb is below 1)";
 	}
+	const double torsoShare = w.partArea[kTorso] / w.totalArea;
+	if (torsoShare < 0.15 || torsoShare > 0.7)
+		return "the torso covers " + std::to_string(int(std::lround(torsoShare * 100))) +
+			   "% of the surface (a human: 30-50%)";
+	return {};
+}
 
-	// Torso frame: axis from the perineum to the centre of the neck cut; mid-sagittal plane = perpendicular bisector
-	// of the armpits (its normal points to the subject's left).
+/// Torso frame: axis from the perineum to the centre of the neck cut; mid-sagittal plane = perpendicular bisector
+/// of the armpits (its normal points to the subject's left).
+struct TorsoFrame
+{
+	Eigen::Vector3d base = Eigen::Vector3d::Zero(), axis = Eigen::Vector3d::Zero();
+	Eigen::Vector3d midpoint = Eigen::Vector3d::Zero(), sideNormal = Eigen::Vector3d::Zero();
+	double axisLength2 = 0.0;
+};
+
+std::string torsoFrame(SegmentationWork& w, TorsoFrame* frame)
+{
+	const TriMesh& mesh = w.mesh;
+	const FeaturePoints& fp = w.seg.features;
 	Eigen::Vector3d neckCentre = Eigen::Vector3d::Zero();
 	int neckRing = 0;
-	for (int v = 0; v < n; ++v)
+	for (int v = 0; v < w.n; ++v)
 	{
-		if (part[size_t(v)] != kHead || component[size_t(v)] != 0)
+		if (w.part[size_t(v)] != kHead || w.component[size_t(v)] != 0)
 			continue;
-		const auto [begin, end] = solver.neighbors(v);
-		for (const int* w = begin; w != end; ++w)
+		const auto [begin, end] = w.solver->neighbors(v);
+		for (const int* x = begin; x != end; ++x)
 		{
-			if (solver.isMeshEdge(w) && part[size_t(*w)] != kHead)
+			if (w.solver->isMeshEdge(x) && w.part[size_t(*x)] != kHead)
 			{
 				neckCentre += vertex(mesh, v);
 				++neckRing;
@@ -628,79 +727,126 @@ std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options,
 	if (neckRing == 0)
 		return "the head has no boundary";
 	neckCentre /= neckRing;
-	const Eigen::Vector3d base = vertex(mesh, fp.perineum);
-	const Eigen::Vector3d axis = neckCentre - base;
-	const double axisLength2 = axis.squaredNorm();
+	TorsoFrame& f = *frame;
+	f.base = vertex(mesh, fp.perineum);
+	f.axis = neckCentre - f.base;
+	f.axisLength2 = f.axis.squaredNorm();
 	const Eigen::Vector3d armpitL = vertex(mesh, fp.armpitLeft), armpitR = vertex(mesh, fp.armpitRight);
-	const Eigen::Vector3d midpoint = 0.5 * (armpitL + armpitR);
-	const Eigen::Vector3d sideNormal = armpitL - armpitR;
-	if (options.validate && (!(axisLength2 > 0.0) || axis.y() < 0.3 * H || sideNormal.x() <= 0.0))
+	f.midpoint = 0.5 * (armpitL + armpitR);
+	f.sideNormal = armpitL - armpitR;
+	if (w.options.validate && (!(f.axisLength2 > 0.0) || f.axis.y() < 0.3 * w.H || f.sideNormal.x() <= 0.0))
 		return "the torso is not upright between the armpits";
-	m.waistHeight = (base + options.waistFraction * axis).y();
-	m.chestHeight = (base + options.chestFraction * axis).y();
+	w.seg.measures.waistHeight = (f.base + w.options.waistFraction * f.axis).y();
+	w.seg.measures.chestHeight = (f.base + w.options.chestFraction * f.axis).y();
+	return {};
+}
 
-	for (int v = 0; v < n; ++v)
+/// The region of a torso vertex: lower / middle / upper by the waist and chest cuts along the torso axis, left or
+/// right of the mid-sagittal plane.
+Region torsoRegion(const SegmentationWork& w, const TorsoFrame& f, int v)
+{
+	const Eigen::Vector3d p = vertex(w.mesh, v);
+	const double s = (p - f.base).dot(f.axis) / f.axisLength2;
+	// A vertex exactly on the mid-sagittal plane (the midline of a symmetric mesh) goes to the side of the
+	// geodesically nearer hand; an exact tie there too (a mirror-symmetric edge graph) goes right.
+	const double side = (p - f.midpoint).dot(f.sideNormal);
+	const bool left = side != 0.0 ? side > 0.0 : w.handL->d[size_t(v)] < w.handR->d[size_t(v)];
+	if (s < w.options.waistFraction)
+		return left ? Region::TorsoLowerLeft : Region::TorsoLowerRight;
+	if (s < w.options.chestFraction)
+		return left ? Region::TorsoMiddleLeft : Region::TorsoMiddleRight;
+	return left ? Region::TorsoUpperLeft : Region::TorsoUpperRight;
+}
+
+/// The 15 regions of the main component's vertices from their parts: limbs split at the elbow / knee, the torso
+/// split in six (torsoRegion).
+void labelRegions(SegmentationWork& w, const TorsoFrame& frame)
+{
+	const SegmentationMeasures& m = w.seg.measures;
+	std::vector<Region>& labels = w.seg.labels;
+	labels.assign(size_t(w.n), Region::Whole);
+	for (int v = 0; v < w.n; ++v)
 	{
-		if (component[size_t(v)] != 0)
+		if (w.component[size_t(v)] != 0)
 			continue;
-		switch (part[size_t(v)])
+		switch (w.part[size_t(v)])
 		{
-		case kHead:
-			labels[size_t(v)] = Region::Head;
-			break;
+		case kHead: labels[size_t(v)] = Region::Head; break;
 		case kArmL:
-			labels[size_t(v)] = handL.d[size_t(v)] < m.elbowDistanceLeft ? Region::ArmLowerLeft : Region::ArmUpperLeft;
+			labels[size_t(v)] = w.handL->d[size_t(v)] < m.elbowDistanceLeft ? Region::ArmLowerLeft : Region::ArmUpperLeft;
 			break;
 		case kArmR:
 			labels[size_t(v)] =
-				handR.d[size_t(v)] < m.elbowDistanceRight ? Region::ArmLowerRight : Region::ArmUpperRight;
+				w.handR->d[size_t(v)] < m.elbowDistanceRight ? Region::ArmLowerRight : Region::ArmUpperRight;
 			break;
 		case kLegL:
-			labels[size_t(v)] = footL.d[size_t(v)] < m.kneeDistanceLeft ? Region::LegLowerLeft : Region::LegUpperLeft;
+			labels[size_t(v)] = w.footL->d[size_t(v)] < m.kneeDistanceLeft ? Region::LegLowerLeft : Region::LegUpperLeft;
 			break;
 		case kLegR:
 			labels[size_t(v)] =
-				footR.d[size_t(v)] < m.kneeDistanceRight ? Region::LegLowerRight : Region::LegUpperRight;
+				w.footR->d[size_t(v)] < m.kneeDistanceRight ? Region::LegLowerRight : Region::LegUpperRight;
 			break;
-		default:
-		{
-			const Eigen::Vector3d p = vertex(mesh, v);
-			const double s = (p - base).dot(axis) / axisLength2;
-			// A vertex exactly on the mid-sagittal plane (the midline of a symmetric mesh) goes to the side of the
-			// geodesically nearer hand; an exact tie there too (a mirror-symmetric edge graph) goes right.
-			const double side = (p - midpoint).dot(sideNormal);
-			const bool left = side != 0.0 ? side > 0.0 : handL.d[size_t(v)] < handR.d[size_t(v)];
-			if (s < options.waistFraction)
-				labels[size_t(v)] = left ? Region::TorsoLowerLeft : Region::TorsoLowerRight;
-			else if (s < options.chestFraction)
-				labels[size_t(v)] = left ? Region::TorsoMiddleLeft : Region::TorsoMiddleRight;
-			else
-				labels[size_t(v)] = left ? Region::TorsoUpperLeft : Region::TorsoUpperRight;
-		}
+		default: labels[size_t(v)] = torsoRegion(w, frame, v);
 		}
 	}
+}
 
-	// Every region one connected piece: stray islands (tessellation noise at the cuts) join their neighbours.
-	mergeStrayPieces(solver, component, labels, 8);
+/// Vertices off the body (enclosed or detached components): label of the nearest body vertex.
+void labelOtherComponents(SegmentationWork& w)
+{
+	if (w.componentCount <= 1)
+		return;
+	const std::vector<int> nearest = nearestBodyVertex(w.mesh, w.layout);
+	std::vector<Region>& labels = w.seg.labels;
+	for (int v = 0; v < w.n; ++v)
+		labels[size_t(v)] = labels[size_t(nearest[size_t(v)])];
+}
 
-	// Vertices off the body (enclosed or detached components): label of the nearest body vertex.
-	if (componentCount > 1)
-	{
-		const std::vector<int> nearest = nearestBodyVertex(mesh, layout);
-		for (int v = 0; v < n; ++v)
-			labels[size_t(v)] = labels[size_t(nearest[size_t(v)])];
-	}
-
-	if (options.validate)
-	{
-		const std::vector<int> counts = regionVertexCounts(labels);
-		const int minimum = std::max(5, mainCount / 500);
-		for (int r = 0; r < kBodyRegionCount; ++r)
-			if (counts[size_t(r)] < minimum)
-				return std::string("region ") + regionName(Region(r)) + " has " + std::to_string(counts[size_t(r)]) +
-					   " vertices (need " + std::to_string(minimum) + ")";
-	}
+/// Every region has a minimum number of vertices.
+std::string checkRegionSizes(const SegmentationWork& w)
+{
+	if (!w.options.validate)
+		return {};
+	const std::vector<int> counts = regionVertexCounts(w.seg.labels);
+	const int minimum = std::max(5, w.mainCount / 500);
+	for (int r = 0; r < kBodyRegionCount; ++r)
+		if (counts[size_t(r)] < minimum)
+			return std::string("region ") + regionName(Region(r)) + " has " + std::to_string(counts[size_t(r)]) +
+				   " vertices (need " + std::to_string(minimum) + ")";
 	return {};
+}
+
+/// The segmentation proper (the steps above, in order); returns a non-empty reason when the mesh does not look like
+/// a standing human. Fills `seg` (labels, features, measures) as far as it got.
+std::string segmentInto(const TriMesh& mesh, const SegmentationOptions& options, Segmentation& seg)
+{
+	SegmentationWork w(mesh, options, seg);
+	std::string reason = measureMainComponent(w);
+	if (!reason.empty())
+		return reason;
+	w.area = vertexAreas(mesh);
+	w.solver.emplace(mesh, options.geodesics, w.layout.bridges);
+	for (std::string (*step)(SegmentationWork&) :
+		 {&findCentre, &findExtremities, &classifyExtremities, &findPerineum, &findArmpits})
+	{
+		reason = step(w);
+		if (!reason.empty())
+			return reason;
+	}
+	cutElbowsAndKnees(w);
+	cutHead(w);
+	reason = assignParts(w);
+	if (!reason.empty())
+		return reason;
+	TorsoFrame frame;
+	reason = torsoFrame(w, &frame);
+	if (!reason.empty())
+		return reason;
+	labelRegions(w, frame);
+	// Every region one connected piece: stray islands (tessellation noise at the cuts) join their neighbours.
+	mergeStrayPieces(*w.solver, w.component, seg.labels, 8);
+	labelOtherComponents(w);
+	return checkRegionSizes(w);
 }
 
 } // namespace

@@ -1,5 +1,6 @@
 // bodyfit-fit command line: exit codes (0 ok, 2 bad input) and one-line errors, run on the built executable.
 
+#include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/ellipsoid_io.h"
 #include "support/paths.h"
 
@@ -10,6 +11,7 @@
 
 #include <sys/wait.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -149,3 +151,52 @@ TEST_CASE("cli: a fit writes readable JSON and the ellipsoid mesh, creating the 
 	CHECK(abs.params.muTorso == 0.03);
 }
 
+
+namespace
+{
+
+/// The count in the summary line "cover     skin between ellipsoids inside the union: N extra points ...", or -1.
+long coverPoints(const std::string& stdoutText)
+{
+	const std::string key = "inside the union: ";
+	const std::size_t at = stdoutText.find(key);
+	return at == std::string::npos ? -1 : std::stol(stdoutText.substr(at + key.size()));
+}
+
+std::string exact(double v)
+{
+	char buf[40];
+	std::snprintf(buf, sizeof buf, "%.17g", v); // round-trips the double exactly
+	return buf;
+}
+
+} // namespace
+
+TEST_CASE("cli: --absolute with the relative thresholds times H gives the same fit and cover", "[fitting][cli]")
+{
+	const std::string body = quoted(bodyfit_test::assetPath("male_young.4508v.obj"));
+	const std::string relJson = (scratch() / "units_rel.json").string();
+	const Run rel = run(body + " -o " + quoted(relJson));
+	REQUIRE(rel.status == 0);
+	const bodyfit::BodyFit relFit = bodyfit::readEllipsoidJson(relJson);
+	const double h = relFit.source.height;
+	const bodyfit::BodyFitOptions defaults;
+
+	const std::string absJson = (scratch() / "units_abs.json").string();
+	const Run abs = run(body + " -o " + quoted(absJson) + " --absolute --mu-torso " + exact(defaults.muTorso * h) +
+						" --mu-limbs " + exact(defaults.muLimbs * h));
+	CAPTURE(abs.err);
+	REQUIRE(abs.status == 0);
+	CHECK(nlohmann::json::parse(slurp(relJson))["ellipsoids"] == nlohmann::json::parse(slurp(absJson))["ellipsoids"]);
+	// The triangle cover used the same piece size (before the fit pipeline --absolute left it at 0.003 m instead of
+	// 0.003 H: 291,440 points instead of 100,504 on this body).
+	CHECK(coverPoints(rel.out) > 0);
+	CHECK(coverPoints(abs.out) == coverPoints(rel.out));
+	// Every length is recorded in metres, each the relative default times H.
+	const bodyfit::BodyFit absFit = bodyfit::readEllipsoidJson(absJson);
+	CHECK_FALSE(absFit.params.relativeToHeight);
+	CHECK(absFit.params.sigma == defaults.sigma * h);
+	CHECK(absFit.params.coverSpacing == defaults.coverSpacing * h);
+	CHECK(relFit.params.relativeToHeight);
+	CHECK(relFit.params.coverSpacing == defaults.coverSpacing);
+}

@@ -1,6 +1,7 @@
 # ctest driver: install the build tree into a fresh prefix, then configure, build and run the outside projects in
-# PROJECT_DIR (tests/install): bullet_only (Bullet extension alone: no assimp / Eigen / nlohmann-json searched for,
-# none in ldd) and full (every component and every public header). Arguments (-D): BUILD_DIR (the bodyfit build),
+# PROJECT_DIR (tests/install): bullet_only (Bullet extension alone: no assimp / Eigen / nlohmann-json searched for, none
+# in ldd), full (every component and every public header) and precision_mismatch (compiled with the other Bullet
+# precision: must fail with bodyfit's one-line message). Arguments (-D): BUILD_DIR (the bodyfit build),
 # WORK_DIR (scratch, wiped), PROJECT_DIR, GENERATOR, BUILD_TYPE.
 foreach(var BUILD_DIR WORK_DIR PROJECT_DIR GENERATOR)
 	if(NOT DEFINED ${var})
@@ -33,6 +34,20 @@ foreach(project bullet_only full)
 	run_step("run ${project}" "${build}/${project}")
 	message(STATUS "${last_output}")
 endforeach()
+
+# A consumer compiled with the other Bullet precision must be stopped by the compiler with bodyfit's message.
+set(build "${WORK_DIR}/precision_mismatch")
+run_step("configure precision_mismatch" "${CMAKE_COMMAND}" -S "${PROJECT_DIR}/precision_mismatch" -B "${build}"
+	-G "${GENERATOR}" "-DCMAKE_PREFIX_PATH=${prefix}" "-DCMAKE_BUILD_TYPE=${BUILD_TYPE}")
+execute_process(COMMAND "${CMAKE_COMMAND}" --build "${build}" --config "${BUILD_TYPE}" RESULT_VARIABLE rc
+	OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(rc EQUAL 0)
+	message(FATAL_ERROR "precision_mismatch: built although it uses the other Bullet precision than the package")
+endif()
+if(NOT "${out}${err}" MATCHES "bodyfit: this bodyfit package was built against Bullet's (float|float64) libraries")
+	message(FATAL_ERROR "precision_mismatch: failed without bodyfit's precision message:\n${out}\n${err}")
+endif()
+message(STATUS "precision_mismatch: refused by the compiler with bodyfit's precision message: ok")
 
 # The Bullet-only consumer: the package config must not have looked for the fitter's dependencies, and the program
 # must not load them.

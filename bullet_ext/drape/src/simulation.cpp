@@ -5,9 +5,9 @@
 #include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/ellipsoid_io.h"
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/fit_pipeline.h"
 #include "bodyfit/fitting/inside_test.h"
 #include "bodyfit/fitting/mesh_io.h"
-#include "bodyfit/fitting/segmentation.h"
 
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
@@ -77,9 +77,13 @@ public:
 	double collisionSeconds = 0.0;
 };
 
-BodyFitOptions fitOptionsFromJson(const nlohmann::json& j, const std::string& file)
+/// The scene's "fit" object as pipeline options. Thresholds are fractions of the body height, or metres with
+/// "absolute": true; the lengths not given (a threshold left out, sigma, the cover spacing) keep their relative
+/// defaults and, like every length, become metres in the pipeline.
+FitPipelineOptions fitOptionsFromJson(const nlohmann::json& j, const std::string& file)
 {
-	BodyFitOptions o;
+	FitPipelineOptions o;
+	const bool absolute = j.contains("absolute") && j["absolute"].is_boolean() && j["absolute"].get<bool>();
 	for (auto it = j.begin(); it != j.end(); ++it)
 	{
 		const std::string where = file + ": body.fit." + it.key();
@@ -92,16 +96,15 @@ BodyFitOptions fitOptionsFromJson(const nlohmann::json& j, const std::string& fi
 			return v;
 		};
 		if (it.key() == "mu_torso")
-			o.muTorso = num(0.0, 1.0);
+			o.lengths.muTorso = {num(0.0, 1.0), !absolute};
 		else if (it.key() == "mu_limbs")
-			o.muLimbs = num(0.0, 1.0);
+			o.lengths.muLimbs = {num(0.0, 1.0), !absolute};
 		else if (it.key() == "max_ellipsoids")
-			o.maxEllipsoids = int(num(0.0, 10000.0));
+			o.fit.maxEllipsoids = int(num(0.0, 10000.0));
 		else if (it.key() == "absolute")
 		{
 			if (!it.value().is_boolean())
 				throw FormatError(where + ": expected true or false");
-			o.relativeToHeight = !it.value().get<bool>();
 		}
 		else
 			throw FormatError(where + ": unknown key (allowed here: absolute, max_ellipsoids, mu_limbs, mu_torso)");
@@ -118,26 +121,27 @@ BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std
 	lo.up = scene.body.up;
 	lo.scale = scene.body.scale;
 	body.meshPath = meshOverride.empty() ? scene.body.mesh : meshOverride;
-	const LoadedMesh loaded = loadTriMesh(body.meshPath, lo);
-	body.mesh = loaded.full;
 	const std::string fitFile = ellipsoidOverride.empty() ? scene.body.ellipsoids : ellipsoidOverride;
+	if (fitFile.empty() && scene.body.fit)
+	{
+		FitPipelineOptions options = fitOptionsFromJson(*scene.body.fit, scene.path);
+		options.load = lo;
+		FitPipelineResult fitted = fitMeshFile(body.meshPath, options);
+		body.mesh = std::move(fitted.loaded.full);
+		for (const FittedEllipsoid& e : fitted.fit.ellipsoids)
+			body.ellipsoids.push_back(e.ellipsoid);
+		body.fitWarnings = fitted.fit.warnings;
+		body.fitSeconds = (fitted.timings.total - fitted.timings.load - fitted.timings.repair) / 1000.0;
+		body.ellipsoidSource = "fit" + scene.body.fit->dump();
+		return body;
+	}
+	body.mesh = loadTriMesh(body.meshPath, lo).full;
 	if (!fitFile.empty())
 	{
 		const BodyFit fit = readEllipsoidJson(fitFile);
 		for (const FittedEllipsoid& e : fit.ellipsoids)
 			body.ellipsoids.push_back(e.ellipsoid);
 		body.ellipsoidSource = fitFile;
-	}
-	else if (scene.body.fit)
-	{
-		const Clock::time_point t0 = Clock::now();
-		const BodyFitOptions options = fitOptionsFromJson(*scene.body.fit, scene.path);
-		const Segmentation seg = segmentBody(loaded.mesh);
-		const BodyFit fit = fitBody(loaded.mesh, seg.labels, options);
-		for (const FittedEllipsoid& e : fit.ellipsoids)
-			body.ellipsoids.push_back(e.ellipsoid);
-		body.fitSeconds = secondsSince(t0);
-		body.ellipsoidSource = "fit" + scene.body.fit->dump();
 	}
 	return body;
 }
@@ -706,6 +710,8 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 	j["cloth_bbox_max"] = {cloth.V.col(0).maxCoeff(), cloth.V.col(1).maxCoeff(), cloth.V.col(2).maxCoeff()};
 	if (sim.body().fitSeconds > 0.0)
 		j["fit_s"] = sim.body().fitSeconds;
+	if (!sim.body().fitWarnings.empty())
+		j["fit_warnings"] = sim.body().fitWarnings;
 	const EffectCounters& c = sim.counters();
 	j["effect_work"] = {{"wind_substeps", c.windSubsteps},
 						{"wind_force_evaluations", c.windNodeForces},

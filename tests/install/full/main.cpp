@@ -16,6 +16,7 @@
 #include "bodyfit/fitting/ellipsoid_io.h"
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/fit_error.h"
+#include "bodyfit/fitting/fit_pipeline.h"
 #include "bodyfit/fitting/fit_quality.h"
 #include "bodyfit/fitting/geodesics.h"
 #include "bodyfit/fitting/inside_test.h"

@@ -7,6 +7,8 @@ after Bullet's soft-body position solve, through a btDefaultSoftBodySolver subcl
 #ifndef BT_ELLIPSOID_CLOTH_COLLIDER_H
 #define BT_ELLIPSOID_CLOTH_COLLIDER_H
 
+#include "bodyfit/bullet_ext/btBodyfitPrecision.h"
+
 #include "BulletSoftBody/btDefaultSoftBodySolver.h"
 #include "BulletSoftBody/btSoftBody.h"
 #include "BulletSoftBody/btSoftRigidDynamicsWorld.h"

@@ -7,6 +7,8 @@ and btEllipsoidWorldCache: the same ellipsoids in world space for one body pose,
 #ifndef BT_ELLIPSOID_COMPOUND_SHAPE_H
 #define BT_ELLIPSOID_COMPOUND_SHAPE_H
 
+#include "bodyfit/bullet_ext/btBodyfitPrecision.h"
+
 #include "BulletCollision/CollisionShapes/btCompoundShape.h"
 #include "LinearMath/btAlignedObjectArray.h"
 #include "LinearMath/btMatrix3x3.h"

@@ -6,6 +6,8 @@ btEllipsoidShape: a convex, axis-aligned solid ellipsoid for Bullet's GJK/EPA, r
 #ifndef BT_ELLIPSOID_SHAPE_H
 #define BT_ELLIPSOID_SHAPE_H
 
+#include "bodyfit/bullet_ext/btBodyfitPrecision.h"
+
 #include "BulletCollision/CollisionShapes/btConvexInternalShape.h"
 
 /// Smallest semi-axis the shape accepts (metres). Non-positive or non-finite semi-axes are clamped to it.

@@ -16,6 +16,8 @@
 /// measurements behind them: bullet_ext/README.md, docs/ROBUSTNESS.md section 8). In a float64 build
 /// (BT_USE_DOUBLE_PRECISION) the spacing of btScalar at 1,000 km is 1.2e-10 m and the check passes.
 
+#include "bodyfit/bullet_ext/btBodyfitPrecision.h"
+
 #include <LinearMath/btVector3.h>
 
 enum btFloatRangeStatus

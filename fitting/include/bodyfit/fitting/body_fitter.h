@@ -88,6 +88,40 @@ struct BodyFitOptions
 	bool trueDistance = true;
 };
 
+/// A length-valued fit parameter: a fraction of the body height H, or metres.
+struct Length
+{
+	double value = 0.0;
+	bool relativeToHeight = true; ///< value is a fraction of H (else metres)
+
+	static Length ofHeight(double fraction) { return {fraction, true}; }
+	static Length inMetres(double metres) { return {metres, false}; }
+	double toMetres(double height) const { return relativeToHeight ? value * height : value; }
+};
+
+/// The length-valued parameters of a fit, each in its own unit. Defaults: the relative defaults of BodyFitOptions.
+struct FitLengths
+{
+	Length muTorso = Length::ofHeight(BodyFitOptions().muTorso);
+	Length muLimbs = Length::ofHeight(BodyFitOptions().muLimbs);
+	Length sigma = Length::ofHeight(BodyFitOptions().sigma);
+	Length coverSpacing = Length::ofHeight(BodyFitOptions().coverSpacing);
+
+	/// The lengths of `options` in its unit (options.relativeToHeight).
+	static FitLengths of(const BodyFitOptions& options);
+	bool allRelative() const;
+};
+
+/// The one place where a fit's units are resolved: `options` with its four lengths (mu_torso, mu_limbs, sigma,
+/// cover spacing) taken from `lengths` and converted to metres for a body of height `height`; relativeToHeight =
+/// false and height = `height` (so minRadiusFraction, always a fraction of H, refers to the same H). fitBody runs
+/// its options through it, and so does the fit pipeline (fit_pipeline.h).
+BodyFitOptions resolveLengths(const BodyFitOptions& options, const FitLengths& lengths, double height);
+
+/// The height H of the relative quantities: `height` when > 0, else the y extent of the mesh, else (a flat mesh)
+/// the bounding-box diagonal, with a warning in `*warning` (when given; left untouched otherwise).
+double bodyHeight(const TriMesh& mesh, double height, std::string* warning = nullptr);
+
 /// One fitted ellipsoid and how well it covers its vertices.
 struct FittedEllipsoid
 {

@@ -47,6 +47,7 @@ struct MeshReport
 	double height = 0.0;         ///< y extent, metres, after up-axis conversion and scale
 	UpAxis up = UpAxis::Y;
 	double scale = 1.0;
+	double repairMs = 0.0;       ///< wall time of the repair (conversion, weld, faces, components) in ms
 };
 
 struct LoadedMesh

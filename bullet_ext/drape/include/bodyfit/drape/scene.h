@@ -34,7 +34,9 @@ struct BodySpec
 {
 	std::string mesh;                 ///< body mesh (absolute path after parsing)
 	std::string ellipsoids;           ///< fitted ellipsoid JSON (absolute), empty when `fit` is given instead
-	std::optional<nlohmann::json> fit;///< fit parameters (passed to the fitter) when no ellipsoid file is given
+	/// Fit parameters when no ellipsoid file is given: mu_torso, mu_limbs (fractions of the body height, metres with
+	/// "absolute": true), max_ellipsoids; run through the fit pipeline (fitting/include/bodyfit/fitting/fit_pipeline.h).
+	std::optional<nlohmann::json> fit;
 	UpAxis up = UpAxis::Y;
 	double scale = 1.0;
 };

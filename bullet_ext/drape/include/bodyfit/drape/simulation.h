@@ -33,7 +33,8 @@ struct BodyData
 	std::vector<Ellipsoid> ellipsoids;
 	std::string meshPath;
 	std::string ellipsoidSource; ///< fit file, or "fit(...)" when the fitter ran
-	double fitSeconds = 0.0;     ///< time spent fitting (0 when read from a file)
+	double fitSeconds = 0.0;     ///< time spent segmenting and fitting (0 when read from a file)
+	std::vector<std::string> fitWarnings; ///< the fit's warnings (e.g. the non-human fallback), when the fitter ran
 };
 
 /// Loads the body as the scene says; the overrides replace scene.body.mesh / scene.body.ellipsoids when not empty.
