@@ -7,8 +7,10 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
+#include <map>
 #include <numeric>
 #include <random>
 #include <vector>
@@ -259,4 +261,77 @@ inline bodyfit::TriMesh detached(const bodyfit::TriMesh& mesh, const std::functi
 	return out;
 }
 
+/// One level of red-green refinement of the faces for which `selected(mesh, face)` holds: those are cut into four
+/// at their edge midpoints, and every other face that shares a cut edge is split into two or three so that the mesh
+/// stays conforming (no T-junctions). The surface does not change (midpoints lie on the flat triangles); vertex i of
+/// the input stays vertex i, midpoints are appended. Orientation is kept.
+inline bodyfit::TriMesh refinedWhere(const bodyfit::TriMesh& mesh,
+	const std::function<bool(const bodyfit::TriMesh&, int)>& selected)
+{
+	std::vector<std::array<int, 3>> faces;
+	std::vector<Eigen::Vector3d> added;
+	std::map<std::pair<int, int>, int> midpoint;
+	const int n = mesh.vertexCount();
+	auto key = [](int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); };
+	for (int f = 0; f < mesh.faceCount(); ++f)
+		if (selected(mesh, f))
+			for (int k = 0; k < 3; ++k)
+			{
+				const auto e = key(mesh.F(f, k), mesh.F(f, (k + 1) % 3));
+				if (midpoint.emplace(e, n + int(added.size())).second)
+					added.push_back(0.5 * (mesh.V.row(e.first) + mesh.V.row(e.second)).transpose());
+			}
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		std::array<int, 3> v{}, m{};
+		int cut = 0;
+		for (int k = 0; k < 3; ++k)
+		{
+			v[size_t(k)] = mesh.F(f, k);
+			const auto it = midpoint.find(key(mesh.F(f, k), mesh.F(f, (k + 1) % 3)));
+			m[size_t(k)] = it == midpoint.end() ? -1 : it->second; // m[k] on edge v[k] -> v[k + 1]
+			cut += m[size_t(k)] >= 0 ? 1 : 0;
+		}
+		if (cut == 0)
+			faces.push_back(v);
+		else if (cut == 3)
+		{
+			faces.push_back({v[0], m[0], m[2]});
+			faces.push_back({m[0], v[1], m[1]});
+			faces.push_back({m[2], m[1], v[2]});
+			faces.push_back({m[0], m[1], m[2]});
+		}
+		else
+		{
+			// Rotate so that the cut edges come first: edge 0 (one cut) or edges 0 and 1 (two cuts).
+			int r = 0;
+			while (!(m[size_t(r)] >= 0 && (cut == 1 || m[size_t((r + 1) % 3)] >= 0)))
+				++r;
+			const int a = v[size_t(r)], b = v[size_t((r + 1) % 3)], c = v[size_t((r + 2) % 3)];
+			const int mab = m[size_t(r)], mbc = m[size_t((r + 1) % 3)];
+			if (cut == 1)
+			{
+				faces.push_back({a, mab, c});
+				faces.push_back({mab, b, c});
+			}
+			else
+			{
+				faces.push_back({mab, b, mbc});
+				faces.push_back({a, mab, mbc});
+				faces.push_back({a, mbc, c});
+			}
+		}
+	}
+	bodyfit::TriMesh out;
+	out.V.resize(n + int(added.size()), 3);
+	out.V.topRows(n) = mesh.V;
+	for (size_t i = 0; i < added.size(); ++i)
+		out.V.row(n + int(i)) = added[i].transpose();
+	out.F.resize(int(faces.size()), 3);
+	for (size_t f = 0; f < faces.size(); ++f)
+		out.F.row(int(f)) << faces[f][0], faces[f][1], faces[f][2];
+	return out;
+}
+
 } // namespace bodyfit_test
+
