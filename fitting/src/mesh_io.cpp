@@ -222,6 +222,34 @@ std::string checkFloatPrecision(const TriMesh& raw, const std::string& path)
 	return {};
 }
 
+/// Sorts out the components of `out.full` (components.h): `out.mesh` = everything but the detached ones, with its
+/// own layout; the report counts each role and carries one warning line per role.
+void keepBody(LoadedMesh& out, const ComponentOptions& options)
+{
+	MeshReport& r = out.report;
+	const ComponentLayout fullLayout = analyzeComponents(out.full, options);
+	r.components = int(fullLayout.components.size());
+	r.attachedComponents = fullLayout.count(ComponentRole::Attached);
+	r.insideComponents = fullLayout.count(ComponentRole::Inside);
+	r.insideComponentVertices = fullLayout.vertexCount(ComponentRole::Inside);
+	r.detachedComponents = fullLayout.count(ComponentRole::Detached);
+	r.droppedComponentVertices = fullLayout.vertexCount(ComponentRole::Detached);
+	r.warnings = componentWarnings(fullLayout);
+	if (r.detachedComponents > 0)
+	{
+		std::vector<char> keep(size_t(out.full.vertexCount()));
+		for (int v = 0; v < out.full.vertexCount(); ++v)
+			keep[size_t(v)] = fullLayout.kept(v);
+		out.mesh = extract(out.full, keep);
+		out.components = analyzeComponents(out.mesh, options);
+	}
+	else
+	{
+		out.mesh = out.full;
+		out.components = fullLayout;
+	}
+}
+
 } // namespace
 
 void requireUsable(const TriMesh& mesh, const std::string& name)
@@ -403,27 +431,7 @@ LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const st
 	r.unreferencedVertices = int(std::count(used.begin(), used.end(), 0));
 	out.full = extract(welded, used);
 
-	const ComponentLayout fullLayout = analyzeComponents(out.full, options.components);
-	r.components = int(fullLayout.components.size());
-	r.attachedComponents = fullLayout.count(ComponentRole::Attached);
-	r.insideComponents = fullLayout.count(ComponentRole::Inside);
-	r.insideComponentVertices = fullLayout.vertexCount(ComponentRole::Inside);
-	r.detachedComponents = fullLayout.count(ComponentRole::Detached);
-	r.droppedComponentVertices = fullLayout.vertexCount(ComponentRole::Detached);
-	r.warnings = componentWarnings(fullLayout);
-	if (r.detachedComponents > 0)
-	{
-		std::vector<char> keep(size_t(out.full.vertexCount()));
-		for (int v = 0; v < out.full.vertexCount(); ++v)
-			keep[size_t(v)] = fullLayout.kept(v);
-		out.mesh = extract(out.full, keep);
-		out.components = analyzeComponents(out.mesh, options.components);
-	}
-	else
-	{
-		out.mesh = out.full;
-		out.components = fullLayout;
-	}
+	keepBody(out, options.components);
 
 	requireUsable(out.mesh, name);
 	r.bboxDiagonal = bboxDiagonal(out.mesh.V);
