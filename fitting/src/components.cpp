@@ -173,6 +173,16 @@ struct Links
 	}
 };
 
+/// Per component: 1 when it has a face (a lone, unreferenced vertex is a component without: it encloses nothing and
+/// has no surface to measure a gap to).
+std::vector<char> componentsWithFaces(const TriMesh& mesh, const std::vector<int>& component, int count)
+{
+	std::vector<char> has(static_cast<size_t>(count), 0);
+	for (int f = 0; f < mesh.faceCount(); ++f)
+		has[size_t(component[size_t(mesh.F(f, 0))])] = 1;
+	return has;
+}
+
 /// The faces of component `id` with only its own vertices (compact: grids over it span its box only).
 TriMesh componentMesh(const TriMesh& mesh, const std::vector<int>& component, const std::vector<int>& members, int id)
 {
@@ -232,6 +242,7 @@ void findEnclosed(const TriMesh& mesh, const std::vector<std::vector<int>>& memb
 	for (int c = 0; c < k; ++c)
 		for (int v : members[size_t(c)])
 			box[size_t(c)].extend(point(mesh, v));
+	const std::vector<char> hasFaces = componentsWithFaces(mesh, layout.vertexComponent, k);
 	std::map<int, MeshInsideTest> tests; // built on demand
 	for (int c = 1; c < k; ++c)
 	{
@@ -242,7 +253,7 @@ void findEnclosed(const TriMesh& mesh, const std::vector<std::vector<int>>& memb
 			sample[size_t(i)] = m[size_t((int64_t(i) * int64_t(m.size())) / s)];
 		for (int j = 0; j < c; ++j)
 		{
-			if (!box[size_t(j)].intersects(box[size_t(c)]))
+			if (!hasFaces[size_t(j)] || !box[size_t(j)].intersects(box[size_t(c)]))
 				continue;
 			auto it = tests.find(j);
 			if (it == tests.end())
@@ -293,6 +304,7 @@ void findNearby(const TriMesh& mesh, const std::vector<std::vector<int>>& member
 		reach[size_t(c)].extend(reach[size_t(c)].min() - Eigen::Vector3d::Constant(layout.gap));
 		reach[size_t(c)].extend(reach[size_t(c)].max() + Eigen::Vector3d::Constant(layout.gap));
 	}
+	const std::vector<char> hasFaces = componentsWithFaces(mesh, layout.vertexComponent, k);
 	std::map<int, std::pair<MeshDistanceGrid, VertexGrid>> grids; // built on demand
 	for (int c = 1; c < k; ++c)
 	{
@@ -300,7 +312,7 @@ void findNearby(const TriMesh& mesh, const std::vector<std::vector<int>>& member
 			continue;
 		for (int j = 0; j < c; ++j)
 		{
-			if (links.insideHost[size_t(j)] >= 0 || !reach[size_t(j)].intersects(reach[size_t(c)]))
+			if (links.insideHost[size_t(j)] >= 0 || !hasFaces[size_t(j)] || !reach[size_t(j)].intersects(reach[size_t(c)]))
 				continue;
 			auto it = grids.find(j);
 			if (it == grids.end())

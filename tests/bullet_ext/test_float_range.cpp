@@ -81,7 +81,8 @@ TEST_CASE("float range: thresholds for a 2 mm skin", "[bullet_ext][float_range]"
 	}
 	else
 	{
-		CHECK(btFloatRangeLimit(skin, BT_FLOAT_RANGE_WARN) > 1e12);
+		// 53 bits: the spacing passes 62.5 um only at 2^39 m = 5.5e8 km.
+		CHECK(btFloatRangeLimit(skin, BT_FLOAT_RANGE_WARN) == std::ldexp(1.0, 39));
 		for (double d : {500.0, 1e4, 1e6})
 			CHECK(at(d) == BT_FLOAT_RANGE_OK);
 	}

@@ -268,6 +268,19 @@ TEST_CASE("components: synthetic roles (touching, passing through, enclosed, far
 		CHECK(layout.components[1].role == ComponentRole::Attached);
 		CHECK(!layout.bridges.empty());
 	}
+	SECTION("lone vertices (no faces, as an API caller may pass) are classified without throwing")
+	{
+		bodyfit::TriMesh withPoints = big;
+		withPoints.V.conservativeResize(big.vertexCount() + 2, 3);
+		withPoints.V.row(big.vertexCount()) << 0.1, 0.2, 0.0;     // inside the sphere
+		withPoints.V.row(big.vertexCount() + 1) << 9.0, 0.0, 0.0; // far away
+		const ComponentLayout layout = analyzeComponents(withPoints);
+		REQUIRE(layout.components.size() == 3);
+		CHECK(layout.components[1].role == ComponentRole::Inside);
+		CHECK(layout.components[2].role == ComponentRole::Detached);
+		const Segmentation seg = segmentBody(withPoints); // not a human, but no throw
+		CHECK_FALSE(seg.ok);
+	}
 	SECTION("a sphere inside is enclosed; one inside a detached prop is detached")
 	{
 		const TriMesh eye = uvSphere(0.2, 12, 6, Eigen::Vector3d(0.3, 0.2, 0));

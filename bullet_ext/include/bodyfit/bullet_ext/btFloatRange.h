@@ -45,7 +45,7 @@ btFloatRangeStatus btCheckFloatRange(const btVector3& aabbMin, const btVector3& 
 									 const char** whyNot = 0);
 
 /// The smallest distance from the origin at which btCheckFloatRange gives `status` (WARN or REFUSE) for
-/// `resolution` in this build (+infinity in practice for a float64 build: 2^(1022)).
+/// `resolution` in this build (float64: 2^39 m = 5.5e8 km for a 2 mm skin, i.e. never in practice).
 double btFloatRangeLimit(btScalar resolution, btFloatRangeStatus status);
 
 #endif
