@@ -12,6 +12,7 @@
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/mesh_io.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -158,8 +159,11 @@ int main(int argc, char** argv)
 				throw InvalidInputError("file '" + *p + "' does not exist");
 		std::cerr << "bodyfit-drape: loading body " << (args.body.empty() ? scene.body.mesh : args.body) << "\n";
 		body = loadBody(scene, args.body, args.ellipsoids);
-		for (const std::string& w : body.fitWarnings)
-			std::cerr << "bodyfit-drape: warning: fit: " << w << "\n";
+		for (const std::string& w : body.loadWarnings)
+			std::cerr << "bodyfit-drape: warning: mesh: " << w << "\n";
+		for (const std::string& w : body.fitWarnings) // the fit repeats the load warnings: print those once
+			if (std::find(body.loadWarnings.begin(), body.loadWarnings.end(), w) == body.loadWarnings.end())
+				std::cerr << "bodyfit-drape: warning: fit: " << w << "\n";
 		sim = std::make_unique<DrapeSimulation>(scene, body);
 	}
 	catch (const FormatError& e)

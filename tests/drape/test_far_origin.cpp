@@ -74,3 +74,14 @@ TEST_CASE("far origin: the scene runner warns beyond 1 km and refuses beyond 8 k
 		CHECK(sim.warnings().empty());
 	}
 }
+
+TEST_CASE("far origin: what loading the body found reaches the scene runner", "[scene][far_origin][components]")
+{
+	// tests/data/robust_components.obj: parts joined, one inside, one prop left out (three warnings, components.h).
+	const Scene scene = loadScene(std::string(BODYFIT_SCENE_DIR) + "/skirt_drop.json");
+	const BodyData body = loadBody(scene, std::string(BODYFIT_TEST_DATA_DIR) + "/robust_components.obj");
+	REQUIRE(body.loadWarnings.size() == 3);
+	CHECK_THAT(body.loadWarnings[2], Catch::Contains("detached component"));
+	// The runner keeps every component for its metrics (the prop included).
+	CHECK(body.mesh.vertexCount() == 32);
+}

@@ -127,6 +127,7 @@ BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std
 		FitPipelineOptions options = fitOptionsFromJson(*scene.body.fit, scene.path);
 		options.load = lo;
 		FitPipelineResult fitted = fitMeshFile(body.meshPath, options);
+		body.loadWarnings = fitted.loaded.report.warnings;
 		body.mesh = std::move(fitted.loaded.full);
 		for (const FittedEllipsoid& e : fitted.fit.ellipsoids)
 			body.ellipsoids.push_back(e.ellipsoid);
@@ -135,7 +136,9 @@ BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std
 		body.ellipsoidSource = "fit" + scene.body.fit->dump();
 		return body;
 	}
-	body.mesh = loadTriMesh(body.meshPath, lo).full;
+	LoadedMesh loaded = loadTriMesh(body.meshPath, lo);
+	body.loadWarnings = loaded.report.warnings;
+	body.mesh = std::move(loaded.full);
 	if (!fitFile.empty())
 	{
 		const BodyFit fit = readEllipsoidJson(fitFile);
@@ -712,6 +715,8 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 		j["fit_s"] = sim.body().fitSeconds;
 	if (!sim.body().fitWarnings.empty())
 		j["fit_warnings"] = sim.body().fitWarnings;
+	if (!sim.body().loadWarnings.empty())
+		j["load_warnings"] = sim.body().loadWarnings;
 	const EffectCounters& c = sim.counters();
 	j["effect_work"] = {{"wind_substeps", c.windSubsteps},
 						{"wind_force_evaluations", c.windNodeForces},

@@ -35,6 +35,9 @@ struct BodyData
 	std::string ellipsoidSource; ///< fit file, or "fit(...)" when the fitter ran
 	double fitSeconds = 0.0;     ///< time spent segmenting and fitting (0 when read from a file)
 	std::vector<std::string> fitWarnings; ///< the fit's warnings (e.g. the non-human fallback), when the fitter ran
+	/// What loading the body mesh found: several meshes joined or props left out of the fit, coordinates coarse in
+	/// assimp's float (bodyfit::MeshReport::warnings). In the metrics JSON as "load_warnings".
+	std::vector<std::string> loadWarnings;
 };
 
 /// Loads the body as the scene says; the overrides replace scene.body.mesh / scene.body.ellipsoids when not empty.
