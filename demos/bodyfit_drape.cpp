@@ -15,6 +15,7 @@
 #include "bodyfit/fitting/mesh_io.h"
 #include "common/cli.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -187,8 +188,11 @@ int main(int argc, char** argv)
 		requireOutputs(args, scene);
 		std::cerr << "bodyfit-drape: loading body " << (args.body.empty() ? scene.body.mesh : args.body) << "\n";
 		body = loadBody(scene, args.body, args.ellipsoids);
-		for (const std::string& w : body.fitWarnings)
-			std::cerr << "bodyfit-drape: warning: fit: " << w << "\n";
+		for (const std::string& w : body.loadWarnings)
+			std::cerr << "bodyfit-drape: warning: mesh: " << w << "\n";
+		for (const std::string& w : body.fitWarnings) // the fit repeats the load warnings: print those once
+			if (std::find(body.loadWarnings.begin(), body.loadWarnings.end(), w) == body.loadWarnings.end())
+				std::cerr << "bodyfit-drape: warning: fit: " << w << "\n";
 		sim = std::make_unique<DrapeSimulation>(scene, body);
 	}
 	catch (const bodyfit_cli::UsageError& e)
@@ -230,6 +234,8 @@ int main(int argc, char** argv)
 		}
 		std::cerr << "bodyfit-drape: " << scene.name << ", " << sim->nodeCount() << " cloth nodes, "
 				  << sim->colliderDescription() << "\n";
+		for (const std::string& w : sim->warnings()) // also in the metrics JSON ("warnings")
+			std::cerr << "bodyfit-drape: warning: " << w << "\n";
 		auto lastPrint = std::chrono::steady_clock::now() - std::chrono::seconds(1);
 		auto progress = [&](int done, int total, const StepStats& st) {
 			const auto now = std::chrono::steady_clock::now();

@@ -47,8 +47,9 @@ E_j is the paper's fitting error: the mean radial distance of an ellipsoid's ver
 The whole-mesh path (--no-segmentation, or a failed segmentation) uses the torso threshold.
 The body is segmented into 15 regions (head, 6 torso parts, upper/lower arms and legs; the mesh must be
 +y up and face +z, so the subject's left is +x) and each region is fitted on its own. A mesh that is
-not a standing human is fitted as one region, with a warning. The largest connected component is
-used. Exit status: 0 ok, 2 bad input (one-line reason on stderr), 1 internal error.
+not a standing human is fitted as one region, with a warning. A body made of several meshes (separate
+head or hands a few mm away, eyes inside) is fitted as one body; components far from it (props) are
+ignored with a warning. Exit status: 0 ok, 2 bad input (one-line reason on stderr), 1 internal error.
 )";
 
 // Large values switch to %g instead of being cut off at the buffer's end (a 1e30 m error used to print 31 digits).
@@ -76,7 +77,7 @@ void printSummary(const bodyfit::LoadedMesh& loaded, const bodyfit::BodyFit& fit
 			  << " faces used (file: " << r.fileVertices << " vertices, " << r.fileFaces << " faces; welded "
 			  << r.weldedVertices << ", degenerate faces " << r.degenerateFaces << ", components " << r.components;
 	if (r.droppedComponentVertices > 0)
-		std::cout << ", " << r.droppedComponentVertices << " vertices in smaller components ignored";
+		std::cout << ", " << r.droppedComponentVertices << " vertices in detached components ignored";
 	std::cout << ")\n";
 	std::cout << "  frame     file up " << bodyfit::toString(r.up)
 			  << (r.up == bodyfit::UpAxis::Y ? " (no rotation)" : " (rotated to +y up)") << ", scale " << r.scale
@@ -194,7 +195,9 @@ int main(int argc, char** argv)
 			rig = bodyfit::loadRig(meshPath, {options.load, args.value("--skinned-mesh"), /*requireAnimation=*/false});
 			const double loadMs =
 				std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-			result = bodyfit::fitLoadedMesh(bodyfit::LoadedMesh{rig->bindMesh, rig->bindMesh, rig->report}, options,
+			bodyfit::LoadedMesh bind{rig->bindMesh, rig->bindMesh, bodyfit::analyzeComponents(rig->bindMesh),
+									 rig->report};
+			result = bodyfit::fitLoadedMesh(std::move(bind), options,
 											std::filesystem::path(meshPath).filename().string(), loadMs);
 		}
 		else
@@ -207,6 +210,10 @@ int main(int argc, char** argv)
 							  : std::to_string(bodyfit::kBodyRegionCount) + " body regions (segmentation)";
 		if (result.fallback)
 			std::cerr << "bodyfit-fit: warning: " << fit.warnings.front() << "\n";
+		// What loading joined, kept or ignored of a body of several meshes, or found far from the origin (mesh_io.h);
+		// the pipeline also puts these lines into the fit's warnings.
+		for (const std::string& w : result.loaded.report.warnings)
+			std::cerr << "bodyfit-fit: warning: " << w << "\n";
 
 		if (rig)
 		{

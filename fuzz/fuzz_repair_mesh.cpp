@@ -1,5 +1,5 @@
 // libFuzzer target: the in-memory repair (bodyfit::repairMesh: weld, degenerate faces, unreferenced vertices,
-// components) on meshes decoded from the bytes, followed by the MVEE of the repaired vertices. Layout: byte 0 = vertex
+// components: body, attached, inside, detached) on meshes decoded from the bytes, followed by the MVEE of the repaired vertices. Layout: byte 0 = vertex
 // count (1..64), byte 1 = face count (0..64), byte 2 = coordinate mode; then vertices and faces. Modes mix raw doubles
 // (NaN, Inf, denormals, 1e300) with small integers on a grid (exact duplicates, collinear and coplanar sets).
 // Any input must be repaired into a usable mesh or raise InvalidInputError, and the MVEE of a usable mesh must be
@@ -65,6 +65,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
 	try
 	{
 		const bodyfit::LoadedMesh repaired = bodyfit::repairMesh(m, options, "fuzz");
+		// Components (components.h): the fitted mesh is the full one minus the detached components' vertices.
+		if (repaired.mesh.vertexCount() != repaired.full.vertexCount() - repaired.report.droppedComponentVertices ||
+			repaired.report.components < 1)
+			std::abort();
 		const bodyfit::EllipsoidFit fit = bodyfit::minimumVolumeEllipsoid(repaired.full.V);
 		const bodyfit::Ellipsoid& e = fit.ellipsoid;
 		if (!e.center.allFinite() || !e.radii.allFinite() || !e.rotation.allFinite())

@@ -65,6 +65,9 @@ S=$(seed_dir fuzz_repair_mesh)
 # 4 vertices, 4 faces, grid mode: a tetrahedron on the 0.1 grid; and the same in raw-double mode (mostly NaN-free).
 printf '\003\004\001\000\000\000\001\000\000\000\001\000\000\000\001\000\002\001\000\001\003\000\003\002\001\002\003\000' >"$S/seed_tetra_grid"
 head -c 200 tests/data/garbage.bin >"$S/seed_garbage"
+# 8 vertices, 8 faces, grid mode: two tetrahedra, at the origin and 0.6 away on each axis (two components, one
+# detached: components.h).
+printf '\007\010\001\000\000\000\001\000\000\000\001\000\000\000\001\006\006\006\007\006\006\006\007\006\006\006\007\000\002\001\000\001\003\000\003\002\001\002\003\004\006\005\004\005\007\004\007\006\005\006\007\000' >"$S/seed_two_tetra_grid"
 
 status=0
 for t in "${TARGETS[@]}"; do

@@ -95,7 +95,7 @@ void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
 
 btEllipsoidClothCollider::btEllipsoidClothCollider(btSoftRigidDynamicsWorld* world, btCollisionObject* body,
 												   const Config& config)
-	: m_world(world), m_body(body), m_config(config), m_havePose(false)
+	: m_world(world), m_body(body), m_config(config), m_havePose(false), m_precisionWarning(0)
 {
 }
 
@@ -424,6 +424,16 @@ btEllipsoidCompoundShape* ellipsoidCompoundOf(btCollisionShape* shape, btEllipso
 	return compound;
 }
 
+/// btCheckFloatRange of the body's world AABB against max(skin offset, minPrecisionResolution()).
+btFloatRangeStatus checkPrecision(const btCollisionObject* body, const btEllipsoidClothCollider::Config& config,
+								  const char** why)
+{
+	btVector3 lo, hi;
+	body->getCollisionShape()->getAabb(body->getWorldTransform(), lo, hi);
+	return btCheckFloatRange(lo, hi, btMax(config.m_skinOffset, btEllipsoidClothCollider::minPrecisionResolution()),
+							 why);
+}
+
 } // namespace
 
 btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btSoftRigidDynamicsWorld* world,
@@ -459,11 +469,19 @@ btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btSoft
 			*reason = "btEllipsoidClothSoftBodySolver::installCollider: a collider is already installed for this body";
 			return 0;
 		}
+	// Far from the origin a float build cannot resolve the skin offset (btFloatRange.h): refuse, or warn.
+	const char* precision = 0;
+	if (checkPrecision(body, config, &precision) == BT_FLOAT_RANGE_REFUSE)
+	{
+		*reason = precision;
+		return 0;
+	}
 	btEllipsoidCompoundShape* owned = 0;
 	const btEllipsoidCompoundShape* compound = ellipsoidCompoundOf(body->getCollisionShape(), &owned, reason);
 	if (!compound)
 		return 0;
 	btEllipsoidClothColliderCore* collider = new btEllipsoidClothColliderCore(world, body, compound, owned, config);
+	collider->setPrecisionWarning(precision);
 	m_colliders.push_back(collider);
 	for (int i = 0; i < softBodies.size(); ++i)
 		collider->ensureResponseDisabled(softBodies[i]);

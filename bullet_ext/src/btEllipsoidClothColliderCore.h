@@ -37,6 +37,8 @@ public:
 	void ensureResponseDisabled(btSoftBody *softBody);
 	/// Removes the body from every soft body's m_collisionDisabledObjects of the world (uninstall).
 	void restoreResponse();
+	/// Set by the solver at installation (getPrecisionWarning).
+	void setPrecisionWarning(const char* warning) { m_precisionWarning = warning; }
 
 private:
 	/// Everything one collide() call shares between its nodes.

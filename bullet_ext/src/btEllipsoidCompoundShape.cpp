@@ -65,8 +65,8 @@ bool transformsEqual(const btTransform& a, const btTransform& b)
 
 } // namespace
 
-btEllipsoidCompoundShape::btEllipsoidCompoundShape(btScalar childMargin)
-	: btCompoundShape(true, 0), m_childMargin(childMargin), m_analyticRevision(0)
+btEllipsoidCompoundShape::btEllipsoidCompoundShape(btScalar childMargin, bool dynamicAabbTree)
+	: btCompoundShape(dynamicAabbTree, 0), m_childMargin(childMargin), m_analyticRevision(0)
 {
 }
 
@@ -92,12 +92,17 @@ int btEllipsoidCompoundShape::addEllipsoid(const btVector3& center, const btMatr
 	m_unscaledSemiAxes.push_back(probe.getSemiAxes());
 	m_ellipsoids.expand();
 
+	// The child goes in at its final (scaled) transform: btCompoundShape::addChildShape then grows the local AABB by
+	// the child's box and inserts that box into the dynamic tree, O(log n). Adding it at identity and moving it would
+	// need recalculateLocalAabb, a loop over all children per add (O(n^2) for a whole compound: 100k took ~290 s).
+	btVector3 scaledAxes;
+	btMatrix3x3 scaledBasis;
+	scaledGeometry(index, &scaledAxes, &scaledBasis);
 	void* mem = btAlignedAlloc(sizeof(btEllipsoidShape), 16);
-	btEllipsoidShape* child = new (mem) btEllipsoidShape(probe.getSemiAxes(), m_childMargin);
-	btTransform identity;
-	identity.setIdentity();
-	addChildShape(identity, child);
-	applyScaledGeometry(index, true);
+	btEllipsoidShape* child = new (mem) btEllipsoidShape(scaledAxes, m_childMargin);
+	const btTransform t(scaledBasis, m_unscaledCenters[index] * m_localScaling);
+	addChildShape(t, child);
+	storeLocalData(index, t);
 	++m_analyticRevision;
 	return index;
 }
@@ -148,42 +153,47 @@ void btEllipsoidCompoundShape::removeChildShape(btCollisionShape* shape)
 			removeEllipsoid(i);
 }
 
-void btEllipsoidCompoundShape::applyScaledGeometry(int index, bool recalcAabb)
+void btEllipsoidCompoundShape::scaledGeometry(int index, btVector3* scaledAxes, btMatrix3x3* scaledBasis) const
 {
 	// Affine image of {p : |diag(1/a) R^T (p - c)| <= 1} under p -> S p:
 	// centre S c, matrix Q' = S^-1 R diag(1/a^2) R^T S^-1 = R' diag(1/a'^2) R'^T.
 	const btVector3& s = m_localScaling;
 	const btVector3& a = m_unscaledSemiAxes[index];
 	const btMatrix3x3& r = m_unscaledBases[index];
-	btVector3 scaledAxes;
-	btMatrix3x3 scaledBasis;
 	if (isUniform(s))
 	{
-		scaledAxes = a * s.x();
-		scaledBasis = r;
+		*scaledAxes = a * s.x();
+		*scaledBasis = r;
+		return;
 	}
-	else
-	{
-		const btVector3 invA2(btScalar(1) / (a.x() * a.x()), btScalar(1) / (a.y() * a.y()),
-							  btScalar(1) / (a.z() * a.z()));
-		const btMatrix3x3 invS = btMatrix3x3::getIdentity().scaled(btVector3(1, 1, 1) / s);
-		btMatrix3x3 q = invS * r.scaled(invA2) * r.transpose() * invS;
-		btMatrix3x3 rot;
-		q.diagonalize(rot, btScalar(1e-12), 64);
-		for (int i = 0; i < 3; ++i)
-			scaledAxes[i] = btScalar(1) / btSqrt(btMax(q[i][i], SIMD_EPSILON));
-		scaledBasis = sanitizeBasis(rot);
-	}
-	btEllipsoidShape* child = getEllipsoidShape(index);
-	child->setSemiAxes(scaledAxes);
-	btTransform t(scaledBasis, m_unscaledCenters[index] * s);
-	updateChildTransform(index, t, recalcAabb);
+	const btVector3 invA2(btScalar(1) / (a.x() * a.x()), btScalar(1) / (a.y() * a.y()), btScalar(1) / (a.z() * a.z()));
+	const btMatrix3x3 invS = btMatrix3x3::getIdentity().scaled(btVector3(1, 1, 1) / s);
+	btMatrix3x3 q = invS * r.scaled(invA2) * r.transpose() * invS;
+	btMatrix3x3 rot;
+	q.diagonalize(rot, btScalar(1e-12), 64);
+	for (int i = 0; i < 3; ++i)
+		(*scaledAxes)[i] = btScalar(1) / btSqrt(btMax(q[i][i], SIMD_EPSILON));
+	*scaledBasis = sanitizeBasis(rot);
+}
 
+void btEllipsoidCompoundShape::storeLocalData(int index, const btTransform& t)
+{
 	btEllipsoidLocalData& e = m_ellipsoids[index];
 	e.m_center = t.getOrigin();
-	e.m_basis = scaledBasis;
-	e.m_semiAxes = child->getSemiAxes();
+	e.m_basis = t.getBasis();
+	e.m_semiAxes = getEllipsoidShape(index)->getSemiAxes();
 	computeLocalData(index);
+}
+
+void btEllipsoidCompoundShape::applyScaledGeometry(int index, bool recalcAabb)
+{
+	btVector3 scaledAxes;
+	btMatrix3x3 scaledBasis;
+	scaledGeometry(index, &scaledAxes, &scaledBasis);
+	getEllipsoidShape(index)->setSemiAxes(scaledAxes);
+	const btTransform t(scaledBasis, m_unscaledCenters[index] * m_localScaling);
+	updateChildTransform(index, t, recalcAabb);
+	storeLocalData(index, t);
 }
 
 void btEllipsoidCompoundShape::computeLocalData(int index)

@@ -77,6 +77,11 @@ FitPipelineResult fitLoaded(LoadedMesh loaded, const FitPipelineOptions& options
 
 	result.fit = fitSegmented(mesh, result.segmentation, options, &result.resolved);
 	result.fit.source.mesh = sourceName;
+	// What loading found (several meshes, detached props, far from the origin: mesh_io.h) goes into the fit file
+	// too, after the segmentation fallback warning (which stays first).
+	const std::vector<std::string>& loadWarnings = result.loaded.report.warnings;
+	result.fit.warnings.insert(result.fit.warnings.begin() + (result.fallback ? 1 : 0), loadWarnings.begin(),
+		loadWarnings.end());
 	const double repairMs = result.loaded.report.repairMs;
 	std::vector<StageTiming> timings = {{"load", loadMs}, {"repair", repairMs}};
 	if (options.segment)

@@ -145,9 +145,18 @@ std::vector<WeightedEdge> graphEdges(const TriMesh& mesh, const GeodesicOptions&
 } // namespace
 
 GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& options)
+	: GeodesicSolver(mesh, options, {})
+{
+}
+
+GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& options,
+	const std::vector<std::pair<int, int>>& bridges)
 {
 	const int n = mesh.vertexCount();
-	const std::vector<WeightedEdge> edges = graphEdges(mesh, options);
+	std::vector<WeightedEdge> edges = graphEdges(mesh, options);
+	for (const auto& [a, b] : bridges)
+		if (a >= 0 && a < n && b >= 0 && b < n && a != b)
+			edges.push_back({std::min(a, b), std::max(a, b), (mesh.V.row(a) - mesh.V.row(b)).norm(), 1});
 
 	// CSR adjacency; then one record per vertex pair (the shortest; a mesh edge wins a tie), sorted by neighbour.
 	std::vector<int> degree(static_cast<size_t>(n) + 1, 0);

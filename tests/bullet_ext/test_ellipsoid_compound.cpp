@@ -139,6 +139,58 @@ TEST_CASE("compound: packed analytic data stays in sync with the children", "[bu
 	}
 }
 
+TEST_CASE("compound: the local AABB grown per add is exactly the recomputed one", "[bullet_ext][compound]")
+{
+	// addEllipsoid grows the AABB by the new child's box (O(1)) instead of recomputing it over all children (O(n));
+	// min/max of the same boxes, so the result must be bit-identical to Bullet's recalculateLocalAabb.
+	std::mt19937 rng(7);
+	std::uniform_real_distribution<double> u(0.01, 0.2);
+	btEllipsoidCompoundShape s;
+	auto check = [&] {
+		btVector3 lo, hi;
+		s.getAabb(btTransform::getIdentity(), lo, hi);
+		// Independent reference: the union of every child's Bullet box, plus the compound's margin.
+		btVector3 refLo(BT_LARGE_FLOAT, BT_LARGE_FLOAT, BT_LARGE_FLOAT), refHi = -refLo;
+		for (int i = 0; i < s.getNumChildShapes(); ++i)
+		{
+			btVector3 a, b;
+			s.getChildShape(i)->getAabb(s.getChildTransform(i), a, b);
+			refLo.setMin(a);
+			refHi.setMax(b);
+		}
+		// getAabb goes through centre +- half extent (+ margin), which rounds: a few ulps of coordinates below 4 m
+		// (float ulp 2.4e-7 m), so 1e-6 m.
+		for (int k = 0; k < 3; ++k)
+		{
+			CHECK(double(lo[k]) == Approx(double(refLo[k] - s.getMargin())).margin(1e-6));
+			CHECK(double(hi[k]) == Approx(double(refHi[k] + s.getMargin())).margin(1e-6));
+		}
+		// Bit-identical to Bullet's recomputation over all children.
+		s.recalculateLocalAabb();
+		btVector3 lo2, hi2;
+		s.getAabb(btTransform::getIdentity(), lo2, hi2);
+		CHECK(lo2 == lo);
+		CHECK(hi2 == hi);
+	};
+	for (int i = 0; i < 400; ++i)
+	{
+		if (i == 200)
+			s.setLocalScaling(btVector3(1.5, 0.7, 1.2)); // later adds go in scaled (non-uniform: rotated boxes)
+		s.addEllipsoid(randomUnit(rng) * btScalar(3.0 * u(rng)), randomRotation(rng),
+			btVector3(btScalar(u(rng)), btScalar(u(rng)), btScalar(u(rng))));
+		if (i % 25 == 0 || i == 399)
+			check();
+	}
+	requireInSync(s, rng);
+	// The first add into an empty compound: the box is the child's, not grown from the origin.
+	btEllipsoidCompoundShape one;
+	one.addEllipsoid(btVector3(5, 5, 5), btMatrix3x3::getIdentity(), btVector3(0.1, 0.1, 0.1));
+	btVector3 lo, hi;
+	one.getAabb(btTransform::getIdentity(), lo, hi);
+	CHECK(double(lo.x()) > 4.8);
+	CHECK(double(hi.x()) < 5.2);
+}
+
 TEST_CASE("compound: bad input is sanitised, never NaN", "[bullet_ext][compound]")
 {
 	btEllipsoidCompoundShape s;

@@ -132,3 +132,45 @@ TEST_CASE("cli segmentation: a non-human mesh falls back with a warning and exit
 	CHECK(fs::file_size(ply) > 0); // the preview is written all grey, so a person can see what was found
 }
 
+
+TEST_CASE("cli segmentation: a body of several meshes is fitted whole, a prop is ignored with a warning",
+	"[fitting][cli][segmentation][components]")
+{
+	// male_young.4508v with the head (everything 0.2 m below the top and up) as a separate mesh 3 mm above the
+	// neck, and a 20 cm box 1.5 m to the side: a game asset with a prop.
+	const bodyfit::TriMesh body = bodyfit::loadTriMesh(bodyfit_test::assetPath("male_young.4508v.obj")).mesh;
+	const double neck = body.V.col(1).maxCoeff() - 0.2;
+	const bodyfit::TriMesh split = bodyfit_test::detached(
+		body,
+		[&](int f) { return std::min({body.V(body.F(f, 0), 1), body.V(body.F(f, 1), 1), body.V(body.F(f, 2), 1)}) > neck; },
+		Eigen::Vector3d(0, 0.003, 0));
+	bodyfit::TriMesh prop = bodyfit_test::subdividedCube(0.2, 4);
+	prop.V.rowwise() += Eigen::RowVector3d(1.5, 0.0, 0.0);
+	const std::string mesh = (scratch() / "game_asset.obj").string();
+	bodyfit::saveTriMesh(mesh, bodyfit_test::appended(split, prop));
+	const std::string json = (scratch() / "game_asset.json").string();
+	const Run r = run(quoted(mesh) + " -o " + quoted(json) + " --max-ellipsoids 60");
+	CAPTURE(r.out, r.err);
+	REQUIRE(r.status == 0);
+	CHECK(r.out.find("15 body regions") != std::string::npos);
+	// Two warnings (joined parts, ignored prop), on stderr and in the fit file. The plane cut may leave more than one
+	// piece above it (measured: 2); every piece is joined.
+	CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 2);
+	CHECK(r.err.find("bodyfit-fit: warning: the body is made of several meshes: ") != std::string::npos);
+	CHECK(r.err.find("bodyfit-fit: warning: 1 detached component (" + std::to_string(prop.vertexCount()) +
+					 " vertices)") != std::string::npos);
+	const bodyfit::BodyFit fit = bodyfit::readEllipsoidJson(json);
+	REQUIRE(fit.warnings.size() >= 2);
+	CHECK(fit.warnings[0].find("several meshes") != std::string::npos);
+	CHECK(fit.warnings[1].find("detached component") != std::string::npos);
+	// The head is fitted (it has ellipsoids) and every vertex of the body and the head is inside the union
+	// (zeta <= 1 + 1e-6: the MVEE guarantee of 1e-9 plus the 9 significant digits of the JSON numbers).
+	CHECK(regionsOf(fit).count("head") == 1);
+	for (int v = 0; v < split.vertexCount(); ++v)
+	{
+		double best = 1e300;
+		for (const bodyfit::FittedEllipsoid& e : fit.ellipsoids)
+			best = std::min(best, e.ellipsoid.zeta(split.V.row(v).transpose()));
+		CHECK(best <= 1.0 + 1e-6);
+	}
+}

@@ -102,6 +102,8 @@ if [ -x "$FIT" ]; then
 	# Documented repairs / generic path: these succeed.
 	expect 0 "" -- "$FIT" "$DATA/robust_nonmanifold.obj" -o "$TMP/nm.json"
 	expect 0 "" -- "$FIT" "$DATA/robust_self_intersecting.obj" -o "$TMP/si.json"
+	expect 0 "" -- "$FIT" "$DATA/robust_components.obj" -o "$TMP/rc.json"
+	expect 2 "32-bit floats" -- "$FIT" "$DATA/robust_far_origin.obj" -o "$TMP/far.json"
 	expect 0 "" -- "$FIT" "$DATA/robust_millimetre.obj" -o "$TMP/mm.json" --scale 0.001
 	expect 0 "" -- "$FIT" "$DATA/robust_zup.obj" -o "$TMP/z.json" --up z
 	expect 0 "" -- "$FIT" "$DATA/cube_quads.obj" -o "$TMP/cube.json"

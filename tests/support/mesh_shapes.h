@@ -1,13 +1,16 @@
 #pragma once
 // Closed triangle meshes generated in code for the geodesic and segmentation tests: UV sphere, subdivided cube,
-// flat grid, a star-shaped "animal" blob, and vertex re-indexing / mirroring helpers.
+// flat grid, a star-shaped "animal" blob, vertex re-indexing / mirroring helpers, and the helpers that build
+// bodies of several meshes (game assets) from a bundled body: detach faces as a separate mesh, append meshes.
 #include "bodyfit/fitting/types.h"
 
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
+#include <map>
 #include <numeric>
 #include <random>
 #include <vector>
@@ -213,4 +216,122 @@ inline bodyfit::TriMesh mirroredX(const bodyfit::TriMesh& mesh)
 	return out;
 }
 
+/// The two meshes as one (b's vertices after a's; no vertex shared): b becomes a separate component.
+inline bodyfit::TriMesh appended(const bodyfit::TriMesh& a, const bodyfit::TriMesh& b)
+{
+	bodyfit::TriMesh out;
+	out.V.resize(a.V.rows() + b.V.rows(), 3);
+	out.V << a.V, b.V;
+	out.F.resize(a.F.rows() + b.F.rows(), 3);
+	out.F << a.F, (b.F.array() + int(a.V.rows())).matrix();
+	return out;
+}
+
+/// Cuts the faces for which `selected(face)` holds off the mesh as a separate mesh moved by `offset`, as a game
+/// asset's separate head or hands: their vertices move, and those they share with the other faces are duplicated
+/// (the copies come after the input's vertices), so the cut stays open on both sides. Vertex i of the input is
+/// still vertex i (moved when only selected faces use it); `copyOf`, when given, receives for each input vertex the
+/// index of its moved copy or of itself when it moved, -1 when it stays.
+inline bodyfit::TriMesh detached(const bodyfit::TriMesh& mesh, const std::function<bool(int)>& selected,
+	const Eigen::Vector3d& offset, std::vector<int>* copyOf = nullptr)
+{
+	const int n = mesh.vertexCount();
+	std::vector<char> bySelected(size_t(n), 0), byRest(size_t(n), 0);
+	for (int f = 0; f < mesh.faceCount(); ++f)
+		for (int k = 0; k < 3; ++k)
+			(selected(f) ? bySelected : byRest)[size_t(mesh.F(f, k))] = 1;
+	std::vector<int> copy(size_t(n), -1);
+	int next = n;
+	for (int v = 0; v < n; ++v)
+		if (bySelected[size_t(v)])
+			copy[size_t(v)] = byRest[size_t(v)] ? next++ : v;
+	bodyfit::TriMesh out;
+	out.V.resize(next, 3);
+	out.V.topRows(n) = mesh.V;
+	for (int v = 0; v < n; ++v)
+		if (copy[size_t(v)] >= 0)
+			out.V.row(copy[size_t(v)]) = mesh.V.row(v) + offset.transpose();
+	out.F = mesh.F;
+	for (int f = 0; f < mesh.faceCount(); ++f)
+		if (selected(f))
+			for (int k = 0; k < 3; ++k)
+				out.F(f, k) = copy[size_t(mesh.F(f, k))];
+	if (copyOf)
+		*copyOf = copy;
+	return out;
+}
+
+/// One level of red-green refinement of the faces for which `selected(mesh, face)` holds: those are cut into four
+/// at their edge midpoints, and every other face that shares a cut edge is split into two or three so that the mesh
+/// stays conforming (no T-junctions). The surface does not change (midpoints lie on the flat triangles); vertex i of
+/// the input stays vertex i, midpoints are appended. Orientation is kept.
+inline bodyfit::TriMesh refinedWhere(const bodyfit::TriMesh& mesh,
+	const std::function<bool(const bodyfit::TriMesh&, int)>& selected)
+{
+	std::vector<std::array<int, 3>> faces;
+	std::vector<Eigen::Vector3d> added;
+	std::map<std::pair<int, int>, int> midpoint;
+	const int n = mesh.vertexCount();
+	auto key = [](int a, int b) { return std::make_pair(std::min(a, b), std::max(a, b)); };
+	for (int f = 0; f < mesh.faceCount(); ++f)
+		if (selected(mesh, f))
+			for (int k = 0; k < 3; ++k)
+			{
+				const auto e = key(mesh.F(f, k), mesh.F(f, (k + 1) % 3));
+				if (midpoint.emplace(e, n + int(added.size())).second)
+					added.push_back(0.5 * (mesh.V.row(e.first) + mesh.V.row(e.second)).transpose());
+			}
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		std::array<int, 3> v{}, m{};
+		int cut = 0;
+		for (int k = 0; k < 3; ++k)
+		{
+			v[size_t(k)] = mesh.F(f, k);
+			const auto it = midpoint.find(key(mesh.F(f, k), mesh.F(f, (k + 1) % 3)));
+			m[size_t(k)] = it == midpoint.end() ? -1 : it->second; // m[k] on edge v[k] -> v[k + 1]
+			cut += m[size_t(k)] >= 0 ? 1 : 0;
+		}
+		if (cut == 0)
+			faces.push_back(v);
+		else if (cut == 3)
+		{
+			faces.push_back({v[0], m[0], m[2]});
+			faces.push_back({m[0], v[1], m[1]});
+			faces.push_back({m[2], m[1], v[2]});
+			faces.push_back({m[0], m[1], m[2]});
+		}
+		else
+		{
+			// Rotate so that the cut edges come first: edge 0 (one cut) or edges 0 and 1 (two cuts).
+			int r = 0;
+			while (!(m[size_t(r)] >= 0 && (cut == 1 || m[size_t((r + 1) % 3)] >= 0)))
+				++r;
+			const int a = v[size_t(r)], b = v[size_t((r + 1) % 3)], c = v[size_t((r + 2) % 3)];
+			const int mab = m[size_t(r)], mbc = m[size_t((r + 1) % 3)];
+			if (cut == 1)
+			{
+				faces.push_back({a, mab, c});
+				faces.push_back({mab, b, c});
+			}
+			else
+			{
+				faces.push_back({mab, b, mbc});
+				faces.push_back({a, mab, mbc});
+				faces.push_back({a, mbc, c});
+			}
+		}
+	}
+	bodyfit::TriMesh out;
+	out.V.resize(n + int(added.size()), 3);
+	out.V.topRows(n) = mesh.V;
+	for (size_t i = 0; i < added.size(); ++i)
+		out.V.row(n + int(i)) = added[i].transpose();
+	out.F.resize(int(faces.size()), 3);
+	for (size_t f = 0; f < faces.size(); ++f)
+		out.F.row(int(f)) << faces[f][0], faces[f][1], faces[f][2];
+	return out;
+}
+
 } // namespace bodyfit_test
+

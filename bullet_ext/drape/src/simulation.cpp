@@ -30,6 +30,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <sstream>
 
@@ -126,6 +127,7 @@ BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std
 		FitPipelineOptions options = fitOptionsFromJson(*scene.body.fit, scene.path);
 		options.load = lo;
 		FitPipelineResult fitted = fitMeshFile(body.meshPath, options);
+		body.loadWarnings = fitted.loaded.report.warnings;
 		body.mesh = std::move(fitted.loaded.full);
 		for (const FittedEllipsoid& e : fitted.fit.ellipsoids)
 			body.ellipsoids.push_back(e.ellipsoid);
@@ -134,7 +136,9 @@ BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std
 		body.ellipsoidSource = "fit" + scene.body.fit->dump();
 		return body;
 	}
-	body.mesh = loadTriMesh(body.meshPath, lo).full;
+	LoadedMesh loaded = loadTriMesh(body.meshPath, lo);
+	body.loadWarnings = loaded.report.warnings;
+	body.mesh = std::move(loaded.full);
 	if (!fitFile.empty())
 	{
 		const BodyFit fit = readEllipsoidJson(fitFile);
@@ -168,7 +172,51 @@ struct DrapeSimulation::Impl
 	mutable std::unique_ptr<MeshDistanceGrid> distance;
 };
 
-DrapeSimulation::DrapeSimulation(const Scene& scene, const BodyData& body)
+btFloatRangeStatus checkFloatRange(const Scene& scene, const BodyData& body, const TriMesh& garment,
+								   std::string* message)
+{
+	btVector3 lo(BT_LARGE_FLOAT, BT_LARGE_FLOAT, BT_LARGE_FLOAT), hi = -lo;
+	auto extend = [&](const Eigen::Vector3d& p) {
+		lo.setMin(toBt(p));
+		hi.setMax(toBt(p));
+	};
+	for (const TriMesh* m : {&body.mesh, &garment})
+		for (int i = 0; i < m->vertexCount(); ++i)
+			extend(m->V.row(i).transpose());
+	for (const Ellipsoid& e : body.ellipsoids)
+	{
+		extend(e.center - Eigen::Vector3d::Constant(e.radii.maxCoeff()));
+		extend(e.center + Eigen::Vector3d::Constant(e.radii.maxCoeff()));
+	}
+	double resolution = scene.material.margin;
+	if (scene.collider.kind == ColliderKind::Ellipsoids)
+		resolution = std::min(resolution, scene.collider.skinOffset);
+	resolution = std::max(resolution, double(btEllipsoidClothCollider::minPrecisionResolution()));
+	const btFloatRangeStatus status = btCheckFloatRange(lo, hi, btScalar(resolution));
+	if (status != BT_FLOAT_RANGE_OK && message)
+	{
+		double far = 0.0;
+		for (int k = 0; k < 3; ++k)
+			far = std::max({far, std::abs(double(lo[k])), std::abs(double(hi[k]))});
+		char buf[512];
+		std::snprintf(buf, sizeof buf,
+			"%s: the scene reaches %.0f m from the origin, where float coordinates are %.3g mm apart (%s %.3g mm = "
+			"1/%d of the finest length to resolve, %.3g mm); float is safe up to %.0f m and refused beyond %.0f m; "
+			"use the float64 build (-DBODYFIT_BULLET_DOUBLE=ON) or move the scene nearer the origin",
+			status == BT_FLOAT_RANGE_REFUSE ? "refused" : "float precision", far, btScalarSpacing(far) * 1e3,
+			status == BT_FLOAT_RANGE_REFUSE ? "at least" : "above",
+			(status == BT_FLOAT_RANGE_REFUSE ? BT_FLOAT_RANGE_REFUSE_FRACTION : BT_FLOAT_RANGE_WARN_FRACTION) *
+				resolution * 1e3,
+			int(std::lround(1.0 / double(status == BT_FLOAT_RANGE_REFUSE ? BT_FLOAT_RANGE_REFUSE_FRACTION
+																		  : BT_FLOAT_RANGE_WARN_FRACTION))),
+			resolution * 1e3, btFloatRangeLimit(btScalar(resolution), BT_FLOAT_RANGE_WARN),
+			btFloatRangeLimit(btScalar(resolution), BT_FLOAT_RANGE_REFUSE));
+		*message = buf;
+	}
+	return status;
+}
+
+DrapeSimulation::DrapeSimulation(const Scene& scene, const BodyData& body, bool refuseFarFromOrigin)
 	: impl_(std::make_unique<Impl>()), scene_(scene), body_(body)
 {
 	Impl& im = *impl_;
@@ -305,6 +353,14 @@ DrapeSimulation::DrapeSimulation(const Scene& scene, const BodyData& body)
 
 	// Cloth.
 	garment_ = buildGarmentMesh(scene_.garment);
+	{
+		std::string message;
+		const btFloatRangeStatus range = checkFloatRange(scene_, body_, garment_.mesh, &message);
+		if (range == BT_FLOAT_RANGE_REFUSE && refuseFarFromOrigin)
+			throw InvalidInputError(scene_.path + ": " + message);
+		if (range != BT_FLOAT_RANGE_OK)
+			warnings_.push_back(message);
+	}
 	cloth_ = buildSoftBody(info, garment_.mesh, scene_.material, scene_.solver);
 	cloth_->m_cfg.kKHR = btScalar(scene_.collider.contactHardness);
 	cloth_->m_cfg.kCHR = btScalar(scene_.collider.contactHardness);
@@ -324,8 +380,17 @@ DrapeSimulation::DrapeSimulation(const Scene& scene, const BodyData& body)
 		cfg.m_skinOffset = btScalar(scene_.collider.skinOffset);
 		cfg.m_friction = btScalar(scene_.effects.friction ? scene_.effects.friction->coefficient : 0.0);
 		const char* why = nullptr;
-		collider_ = static_cast<btEllipsoidClothSoftBodySolver*>(im.softSolver.get())
-						->installCollider(im.world.get(), im.bodyObject.get(), cfg, &why);
+		btEllipsoidClothSoftBodySolver* solver = static_cast<btEllipsoidClothSoftBodySolver*>(im.softSolver.get());
+		collider_ = solver->installCollider(im.world.get(), im.bodyObject.get(), cfg, &why);
+		if (!collider_ && !refuseFarFromOrigin)
+		{
+			// Measuring past the limit on purpose: install with a skin the check accepts, then restore the skin.
+			btEllipsoidClothCollider::Config loose = cfg;
+			loose.m_skinOffset = btScalar(1e9);
+			collider_ = solver->installCollider(im.world.get(), im.bodyObject.get(), loose, &why);
+			if (collider_)
+				collider_->setConfig(cfg);
+		}
 		if (!collider_)
 			throw InvalidInputError(std::string("cannot install the ellipsoid cloth collider: ") +
 									(why ? why : "unknown reason"));
@@ -644,12 +709,15 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 	j["max_nan_nodes"] = maxNan;
 	j["max_node_speed_mps"] = finiteOrNull(maxSpeed);
 	j["sdf_cells"] = sim.sdfCells();
+	j["warnings"] = sim.warnings();
 	j["cloth_bbox_min"] = {cloth.V.col(0).minCoeff(), cloth.V.col(1).minCoeff(), cloth.V.col(2).minCoeff()};
 	j["cloth_bbox_max"] = {cloth.V.col(0).maxCoeff(), cloth.V.col(1).maxCoeff(), cloth.V.col(2).maxCoeff()};
 	if (sim.body().fitSeconds > 0.0)
 		j["fit_s"] = sim.body().fitSeconds;
 	if (!sim.body().fitWarnings.empty())
 		j["fit_warnings"] = sim.body().fitWarnings;
+	if (!sim.body().loadWarnings.empty())
+		j["load_warnings"] = sim.body().loadWarnings;
 	const EffectCounters& c = sim.counters();
 	j["effect_work"] = {{"wind_substeps", c.windSubsteps},
 						{"wind_force_evaluations", c.windNodeForces},

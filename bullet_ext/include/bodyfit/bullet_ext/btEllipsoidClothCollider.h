@@ -15,6 +15,7 @@ after Bullet's soft-body position solve, through a btDefaultSoftBodySolver subcl
 #include "LinearMath/btAlignedObjectArray.h"
 
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
+#include "bodyfit/bullet_ext/btFloatRange.h"
 
 class btCollisionObject;
 
@@ -98,6 +99,12 @@ public:
 	btCollisionObject* getBody() const { return m_body; }
 	btSoftRigidDynamicsWorld* getWorld() const { return m_world; }
 	const Config& getConfig() const { return m_config; }
+	/// A static one-line warning when installCollider found the body far from the origin for this build's btScalar
+	/// (BT_FLOAT_RANGE_WARN of btFloatRange.h), 0 otherwise.
+	const char* getPrecisionWarning() const { return m_precisionWarning; }
+	/// The smallest length btCheckFloatRange is asked to resolve: the skin offset, but at least this (1 mm), so a
+	/// skin offset of 0 still needs coordinates that resolve cloth motion.
+	static btScalar minPrecisionResolution() { return btScalar(0.001); }
 	void setConfig(const Config& config) { m_config = config; }
 
 	/// Counters of the most recent substep.
@@ -125,6 +132,7 @@ protected:
 	btEllipsoidClothStats m_lastStats;
 	btEllipsoidClothStats m_accumulatedStats;
 	bool m_havePose; ///< false: the next substep takes the body's pose as it is (no motion)
+	const char* m_precisionWarning; ///< see getPrecisionWarning
 
 private:
 	btEllipsoidClothCollider(const btEllipsoidClothCollider&);
@@ -142,6 +150,11 @@ public:
 	btEllipsoidClothSoftBodySolver();
 	virtual ~btEllipsoidClothSoftBodySolver();
 
+	/// In a float build the body must be near enough the origin for float coordinates to resolve the skin offset
+	/// (at least minPrecisionResolution()): beyond BT_FLOAT_RANGE_REFUSE of btCheckFloatRange (btFloatRange.h;
+	/// 8,192 m for the default 2 mm skin) installCollider refuses with the reason; beyond BT_FLOAT_RANGE_WARN
+	/// (1,024 m) it installs and getPrecisionWarning() says why the result may be degraded. The check uses the body's
+	/// pose at installation.
 	/// Installs the collider for `body` in `world`, which must have been built with this solver (Bullet 3.24's
 	/// btSoftRigidDynamicsWorld does not tell its solver; when the world already has soft bodies, their solver is
 	/// checked). The body's collision shape must be a btEllipsoidCompoundShape (or a single btEllipsoidShape). The

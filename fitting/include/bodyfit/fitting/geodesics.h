@@ -31,6 +31,9 @@ public:
 	static constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 	explicit GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& options = {});
+	/// With extra "bridge" edges (vertex pairs, length = their distance) that join separate components of a body
+	/// (components.h); bridges count as mesh edges in isMeshEdge (they are adjacency, not face diagonals).
+	GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& options, const std::vector<std::pair<int, int>>& bridges);
 
 	int vertexCount() const { return int(offsets_.size()) - 1; }
 	/// Number of undirected graph edges (mesh edges + face diagonals).
@@ -50,7 +53,8 @@ public:
 	{
 		return {targets_.data() + offsets_[v], targets_.data() + offsets_[v + 1]};
 	}
-	/// True when the graph edge at position `edge` (an index into the range returned by neighbors) is a mesh edge.
+	/// True when the graph edge at position `edge` (an index into the range returned by neighbors) is a mesh edge
+	/// or a bridge (false for face diagonals).
 	bool isMeshEdge(const int* edge) const { return isMeshEdge_[size_t(edge - targets_.data())] != 0; }
 
 private:

@@ -1,8 +1,10 @@
 #pragma once
 /// \file mesh_io.h
 /// Mesh input through assimp (OBJ, PLY, STL, glTF/GLB, FBX, ...) and the repairs every mesh gets:
-/// triangulate, convert to metres / +y up, weld duplicate vertices, drop degenerate faces, split components.
+/// triangulate, convert to metres / +y up, weld duplicate vertices, drop degenerate faces, sort out components
+/// (a body made of several meshes is kept whole, detached props are left out: see components.h).
 
+#include "bodyfit/fitting/components.h"
 #include "bodyfit/fitting/types.h"
 
 #include <string>
@@ -28,6 +30,7 @@ struct LoadOptions
 	UpAxis up = UpAxis::Y;
 	double scale = 1.0;                    ///< multiply coordinates by this (0.01 for centimetres, 0.001 for mm)
 	double relativeWeldTolerance = 1e-6;   ///< vertices closer than this fraction of the bbox diagonal are merged
+	ComponentOptions components;           ///< which components form the body (components.h)
 };
 
 /// What loading found and repaired. Printed by the demos.
@@ -40,7 +43,12 @@ struct MeshReport
 	int degenerateFaces = 0;     ///< zero-area / repeated-index faces dropped
 	int unreferencedVertices = 0;///< vertices used by no face, dropped
 	int components = 0;          ///< connected components of the repaired mesh
-	int droppedComponentVertices = 0; ///< vertices outside the largest component (not used for fitting)
+	int attachedComponents = 0;  ///< separate parts joined to the body (touching, a few mm away, passing through)
+	int insideComponents = 0;    ///< components enclosed by the body (eyes, teeth), kept and fitted with it
+	int insideComponentVertices = 0;
+	int detachedComponents = 0;  ///< components that are not part of the body (props): not used for fitting
+	int droppedComponentVertices = 0; ///< vertices of the detached components
+	std::vector<std::string> warnings; ///< one line each: what the components analysis joined, kept or dropped
 	double bboxDiagonal = 0.0;   ///< metres, after scale
 	double height = 0.0;         ///< y extent, metres, after up-axis conversion and scale
 	UpAxis up = UpAxis::Y;
@@ -50,8 +58,9 @@ struct MeshReport
 
 struct LoadedMesh
 {
-	TriMesh mesh;      ///< largest connected component, repaired: what the fitter uses
+	TriMesh mesh;      ///< the body (every component except detached ones), repaired: what the fitter uses
 	TriMesh full;      ///< every component, repaired (e.g. for inside tests against the whole body)
+	ComponentLayout components; ///< of `mesh` (vertex indices of `mesh`; its bridges join its separate parts)
 	MeshReport report;
 };
 

@@ -20,6 +20,7 @@
 /// not by vertex index; only exact ties in Dijkstra predecessors and in the farthest-point picks follow the vertex
 /// order. Shuffling the vertex order of the bundled bodies changes no label (tests/fitting/test_segmentation.cpp).
 
+#include "bodyfit/fitting/components.h"
 #include "bodyfit/fitting/geodesics.h"
 #include "bodyfit/fitting/types.h"
 
@@ -94,6 +95,9 @@ struct Segmentation
 struct SegmentationOptions
 {
 	GeodesicOptions geodesics;
+	/// Which components form the body (components.h): separate parts closer than the gap are bridged for the
+	/// geodesics, enclosed and detached ones take the label of the nearest body vertex.
+	ComponentOptions components;
 	/// Neck: the narrowest planar cross-section perpendicular to the body axis (interior local minimum), searched
 	/// [min, max] x H below the head top.
 	/// Head top -> chin is 0.13 H; the band reaches down to the base of the neck.
@@ -122,7 +126,8 @@ struct SegmentationOptions
 /// Segments a standing human body (+y up, metres or any unit, facing +z so that the subject's left is +x).
 /// Never throws for a mesh that passes requireUsable: when the mesh does not look like a standing human (sphere,
 /// cube, torso only, animal, arms above the head, ...) it returns ok = false, a one-line failureReason and every
-/// label Region::Whole. Vertices outside the largest connected component take the label of the nearest vertex of it.
+/// label Region::Whole. A body of several meshes is segmented as one (components.h: parts closer than the gap are
+/// bridged); vertices of enclosed components (eyes, teeth) and detached ones take the label of the nearest body vertex.
 /// Deterministic: same mesh -> same labels; re-indexing the vertices permutes the labels (see above).
 Segmentation segmentBody(const TriMesh& mesh, const SegmentationOptions& options = {});
 

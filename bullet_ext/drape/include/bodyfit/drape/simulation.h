@@ -9,6 +9,7 @@
 
 #include "bodyfit/fitting/ellipsoid.h"
 #include "bodyfit/fitting/types.h"
+#include "bodyfit/bullet_ext/btFloatRange.h"
 
 #include <nlohmann/json.hpp>
 
@@ -34,6 +35,9 @@ struct BodyData
 	std::string ellipsoidSource; ///< fit file, or "fit(...)" when the fitter ran
 	double fitSeconds = 0.0;     ///< time spent segmenting and fitting (0 when read from a file)
 	std::vector<std::string> fitWarnings; ///< the fit's warnings (e.g. the non-human fallback), when the fitter ran
+	/// What loading the body mesh found: several meshes joined or props left out of the fit, coordinates coarse in
+	/// assimp's float (bodyfit::MeshReport::warnings). In the metrics JSON as "load_warnings".
+	std::vector<std::string> loadWarnings;
 };
 
 /// Loads the body as the scene says; the overrides replace scene.body.mesh / scene.body.ellipsoids when not empty.
@@ -59,7 +63,10 @@ struct ClothSample
 class DrapeSimulation
 {
 public:
-	DrapeSimulation(const Scene& scene, const BodyData& body);
+	/// \throws InvalidInputError when the scene cannot run, among others (float Bullet build) when the body or the
+	/// garment lies so far from the origin that float coordinates cannot resolve the finest length of the scene
+	/// (checkFloatRange below), unless `refuseFarFromOrigin` is false (the far-origin bench measures past it).
+	DrapeSimulation(const Scene& scene, const BodyData& body, bool refuseFarFromOrigin = true);
 	~DrapeSimulation();
 	DrapeSimulation(const DrapeSimulation&) = delete;
 	DrapeSimulation& operator=(const DrapeSimulation&) = delete;
@@ -79,6 +86,8 @@ public:
 	std::vector<std::string> steppedEffects() const;
 	/// One line describing the collider and its tuning (voxel size, margins, hardness, skin offset).
 	const std::string& colliderDescription() const { return colliderDescription_; }
+	/// One-line warnings about the run (e.g. a float build far from the origin); also in the metrics JSON.
+	const std::vector<std::string>& warnings() const { return warnings_; }
 	btEllipsoidClothCollider* ellipsoidCollider() const { return collider_; }
 
 	/// Current body pose (body frame -> world).
@@ -110,9 +119,16 @@ private:
 	EffectCounters counters_;
 	std::vector<std::unique_ptr<Effect>> effects_;
 	std::string colliderDescription_;
+	std::vector<std::string> warnings_;
 	int steps_ = 0;
 	double time_ = 0.0;
 };
+
+/// Float precision far from the origin (bodyfit/bullet_ext/btFloatRange.h) for the body mesh, its ellipsoids and
+/// the garment: the finest length the scene must resolve is the ellipsoid collider's skin offset or the cloth margin,
+/// whichever is smaller (at least 1 mm). Returns the status and, unless OK, a one-line message with the distances.
+btFloatRangeStatus checkFloatRange(const Scene& scene, const BodyData& body, const TriMesh& garment,
+								   std::string* message);
 
 /// Runs `steps` steps, sampling the inside count every scene.sampleEvery steps and at the end, and returns the
 /// metrics JSON of docs/DESIGN.md sec. 6 (steps, nodes, ms_per_step, collision_ms_per_step, nodes_inside_body,
