@@ -270,6 +270,8 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	substep.m_candidates = &m_candidates[0];
 	m_candidateT.resize(ne);
 	substep.m_tvals = &m_candidateT[0];
+	m_contactCandidates.resize(ne);
+	substep.m_contactCandidates = &m_contactCandidates[0];
 	const bool moving = m_moving;
 	const btTransform delta = m_delta;
 
@@ -322,7 +324,8 @@ BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoft
 		}
 		// 4. Union push-out.
 		++m_lastStats.m_nodesPushedOut;
-		zeta = pushNodeOut(node, x, q, substep.m_skin, substep.m_dt);
+		bool moved;
+		zeta = pushNodeOut(node, x, q, substep, moved);
 		return true;
 	}
 	if (entry.m_ellipsoid < 0)
@@ -341,33 +344,52 @@ btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, co
 {
 	btEntryPlacement placed;
 	btPlaceAtEntry(m_current, entry, substep.m_candidates, substep.m_tvals, nc, q, node.m_x, substep.m_skin, placed);
-	btApplyVelocityRule(m_config, bodyVelocityAt(placed.m_surface, substep.m_dt), node, placed.m_surface,
-						placed.m_normal, q, placed.m_center);
-	node.m_x = placed.m_placed;
 	btVector3 point;
 	btScalar zeta;
-	if (btKeepOutsideCandidates(m_current, substep.m_candidates, nc, placed, substep.m_skin, point, zeta))
+	if (!btKeepOutsideCandidates(m_current, substep.m_candidates, nc, placed, substep.m_skin, point, zeta))
 	{
-		node.m_x = point;
+		++m_lastStats.m_nodesRepaired;
+		bool moved;
+		zeta = pushNodeOut(node, point, q, substep, moved);
+		if (!moved)
+			respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, substep);
 		return zeta;
 	}
-	++m_lastStats.m_nodesRepaired;
-	return pushNodeOut(node, point, q, substep.m_skin, substep.m_dt);
+	node.m_x = point;
+	respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, substep);
+	return zeta;
 }
 
 btScalar btEllipsoidClothColliderCore::pushNodeOut(btSoftBody::Node& node, const btVector3& from,
-												   const btVector3& start, btScalar skin, btScalar dt)
+												   const btVector3& start, const Substep& substep, bool& moved)
 {
 	btPushOutResult out;
-	m_pushOut.pushOut(m_current, from, skin, out);
+	m_pushOut.pushOut(m_current, from, substep.m_skin, out);
+	moved = out.m_moved;
 	if (!out.m_moved)
+	{
+		node.m_x = from;
 		return out.m_zeta;
+	}
 	m_lastStats.m_pushOutEnclosed += out.m_enclosed ? 1 : 0;
 	m_lastStats.m_pushOutFallbacks += out.m_fallback ? 1 : 0;
-	const btVector3 surface = out.m_point - out.m_normal * skin;
-	btApplyVelocityRule(m_config, bodyVelocityAt(surface, dt), node, surface, out.m_normal, start, out.m_center);
 	node.m_x = out.m_point;
+	respondVelocity(node, out.m_normal, out.m_point - out.m_normal * substep.m_skin, start, out.m_center, substep);
 	return out.m_zeta;
+}
+
+void btEllipsoidClothColliderCore::respondVelocity(btSoftBody::Node& node, const btVector3& normal,
+												   const btVector3& surface, const btVector3& start,
+												   const btVector3& center, const Substep& substep)
+{
+	// Every surface the node now touches, so no velocity into a second ellipsoid of a crease survives.
+	btNodeContacts contacts;
+	contacts.add(normal);
+	const int nt = substep.m_contactQuery.candidates(node.m_x, node.m_x, substep.m_contactCandidates);
+	btAddTouchingNormals(m_current, substep.m_contactCandidates, nt, node.m_x, substep.m_band, contacts);
+	const btVector3 motion = substep.m_dt > btScalar(0) ? (node.m_x - start) / substep.m_dt : btVector3(0, 0, 0);
+	btApplyVelocityRule(m_config, bodyVelocityAt(surface, substep.m_dt), node, contacts, surface, start, center,
+						motion);
 }
 
 // ---------------------------------------------------------------------------------------------------------------

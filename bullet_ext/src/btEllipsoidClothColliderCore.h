@@ -38,17 +38,31 @@ public:
 	/// Removes the body from every soft body's m_collisionDisabledObjects of the world (uninstall).
 	void restoreResponse();
 
+	/// A placed node touches an ellipsoid whose surface is this close (metres): the skin plus half of it (placement
+	/// in a crease and the first-order distance estimate stay within that) plus 0.5 mm.
+	static btScalar contactBand(btScalar skin) { return btScalar(1.5) * skin + btScalar(0.0005); }
+
 private:
 	/// Everything one collide() call shares between its nodes.
 	struct Substep
 	{
 		btEllipsoidWorldCache::PathQuery m_query;
+		btEllipsoidWorldCache::PathQuery m_contactQuery; ///< the ellipsoids within the contact band of a point
 		btScalar m_skin;
+		btScalar m_band; ///< contactBand(m_skin)
 		btScalar m_dt;
 		int* m_candidates;
 		btScalar* m_tvals;
+		int* m_contactCandidates;
 		Substep(const btEllipsoidWorldCache& cache, btScalar skin, btScalar dt)
-			: m_query(cache, skin), m_skin(skin), m_dt(dt), m_candidates(0), m_tvals(0)
+			: m_query(cache, skin),
+			  m_contactQuery(cache, contactBand(skin)),
+			  m_skin(skin),
+			  m_band(contactBand(skin)),
+			  m_dt(dt),
+			  m_candidates(0),
+			  m_tvals(0),
+			  m_contactCandidates(0)
 		{
 		}
 	};
@@ -68,6 +82,7 @@ private:
 	btScalar m_substepDt;
 	btAlignedObjectArray<int> m_candidates;
 	btAlignedObjectArray<btScalar> m_candidateT;
+	btAlignedObjectArray<int> m_contactCandidates;
 	btEllipsoidUnionPushOut m_pushOut;
 
 	btTransform interpolatedKinematicPose();
@@ -75,8 +90,12 @@ private:
 	bool collideNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep, btScalar& zeta);
 	btScalar respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry, const btVector3& q, int nc,
 							const Substep& substep);
-	btScalar pushNodeOut(btSoftBody::Node& node, const btVector3& from, const btVector3& start, btScalar skin,
-						 btScalar dt);
+	/// Union push-out from `from`, then the velocity rule at the exit; moved = false if `from` was outside already
+	/// (the node is left at `from`, its velocity unchanged).
+	btScalar pushNodeOut(btSoftBody::Node& node, const btVector3& from, const btVector3& start, const Substep& substep,
+						 bool& moved);
+	void respondVelocity(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface,
+						 const btVector3& start, const btVector3& center, const Substep& substep);
 };
 
 #endif // BT_ELLIPSOID_CLOTH_COLLIDER_CORE_H

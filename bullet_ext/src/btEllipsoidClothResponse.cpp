@@ -127,9 +127,79 @@ bool btKeepOutsideCandidates(const btEllipsoidWorldCache& cache, const int* cand
 	return zeta >= btScalar(1);
 }
 
+void btAddTouchingNormals(const btEllipsoidWorldCache& cache, const int* cand, int nc, const btVector3& p, btScalar band,
+						  btNodeContacts& contacts)
+{
+	for (int j = 0; j < nc; ++j)
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[cand[j]];
+		const btVector3 u = e.m_whiten * (p - e.m_center);
+		const btScalar r = u.length();
+		if (!(r > btScalar(0)))
+			continue;
+		const btVector3 g = btWhitenedNormal(e.m_whiten, u) / r; // gradient of |u| at p
+		const btScalar gl = g.length();
+		if (gl > btScalar(0) && r - btScalar(1) <= band * gl)
+			contacts.add(g / gl);
+	}
+}
+
+namespace
+{
+
+bool insideCone(const btVector3& v, const btNodeContacts& contacts)
+{
+	// A small negative slack: projections computed in btScalar land on the planes up to rounding.
+	const btScalar slack = btScalar(-8) * SIMD_EPSILON * v.length();
+	for (int k = 0; k < contacts.m_count; ++k)
+		if (v.dot(contacts.m_normals[k]) < slack)
+			return false;
+	return true;
+}
+
+/// Keeps candidate c if it is feasible and nearer to v than best so far.
+void keepNearest(const btVector3& v, const btVector3& c, const btNodeContacts& contacts, btVector3& best,
+				 btScalar& bestDistance)
+{
+	const btScalar d = (v - c).length2();
+	if (d < bestDistance && insideCone(c, contacts))
+	{
+		best = c;
+		bestDistance = d;
+	}
+}
+
+} // namespace
+
+btVector3 btProjectOntoContactCone(const btVector3& v, const btNodeContacts& contacts)
+{
+	if (insideCone(v, contacts))
+		return v;
+	// The projection lies in the relative interior of a face of the cone: a plane (one active normal), an edge (two)
+	// or the apex; each candidate is the projection onto that face's span, and the nearest feasible one is it.
+	btVector3 best(0, 0, 0);
+	btScalar bestDistance = v.length2();
+	const int n = contacts.m_count;
+	for (int i = 0; i < n; ++i)
+	{
+		const btVector3& ni = contacts.m_normals[i];
+		keepNearest(v, v - ni * v.dot(ni), contacts, best, bestDistance);
+		for (int j = i + 1; j < n; ++j)
+		{
+			btVector3 edge = ni.cross(contacts.m_normals[j]);
+			const btScalar el = edge.length();
+			if (el < SIMD_EPSILON)
+				continue;
+			edge /= el;
+			keepNearest(v, edge * v.dot(edge), contacts, best, bestDistance);
+		}
+	}
+	return best;
+}
+
 void btApplyVelocityRule(const btEllipsoidClothCollider::Config& config, const btVector3& bodyVelocity,
-						 btSoftBody::Node& node, const btVector3& surfacePoint, const btVector3& normal,
-						 const btVector3& start, const btVector3& center)
+						 btSoftBody::Node& node, const btNodeContacts& contacts, const btVector3& surfacePoint,
+						 const btVector3& start, const btVector3& center, const btVector3& motion)
 {
 	btVector3 vr = node.m_v - bodyVelocity;
 	if (config.m_velocityRule == btEllipsoidClothCollider::PAPER_EQ10)
@@ -140,22 +210,24 @@ void btApplyVelocityRule(const btEllipsoidClothCollider::Config& config, const b
 		const btScalar denom = cp + pq;
 		if (denom > btScalar(0))
 			vr *= cp / denom;
+		vr = btProjectOntoContactCone(vr, contacts);
 	}
 	else
 	{
-		// Remove the inward normal velocity; Coulomb friction reduces the tangential part by friction * |vn|.
-		const btScalar vn = vr.dot(normal);
-		if (vn < btScalar(0))
-		{
-			btVector3 vt = vr - normal * vn;
-			const btScalar vtLen = vt.length();
-			const btScalar drop = btMax(config.m_friction, btScalar(0)) * (-vn);
-			if (vtLen <= drop)
-				vt.setValue(0, 0, 0);
-			else
-				vt *= (vtLen - drop) / vtLen;
-			vr = vt;
-		}
+		// Remove the velocity into the touched surfaces; Coulomb friction reduces what is left (tangential to the
+		// active surfaces) by friction * |removed|. With one contact this is the normal/tangential split.
+		const btVector3 vt = btProjectOntoContactCone(vr, contacts);
+		const btScalar removed = (vr - vt).length();
+		const btScalar vtLen = vt.length();
+		const btScalar drop = btMax(config.m_friction, btScalar(0)) * removed;
+		vr = vtLen <= drop ? btVector3(0, 0, 0) : vt * ((vtLen - drop) / vtLen);
 	}
+	// No faster than the node really moved along the surface: placed at the entry, it covered only part of its
+	// path, and a velocity kept whole would outgrow its motion step after step.
+	const btVector3& n = contacts.m_normals[0];
+	const btScalar along = (motion - n * motion.dot(n)).length();
+	const btScalar speed = vr.length();
+	if (speed > along)
+		vr *= along / speed;
 	node.m_v = bodyVelocity + vr;
 }

@@ -38,11 +38,46 @@ void btPlaceAtEntry(const btEllipsoidWorldCache& cache, const btPathEntry& entry
 bool btKeepOutsideCandidates(const btEllipsoidWorldCache& cache, const int* cand, int nc, const btEntryPlacement& placed,
 							 btScalar skin, btVector3& point, btScalar& zeta);
 
-/// The velocity rule after a node is placed on the surface at `surfacePoint` with outward `normal`; velocities are
-/// relative to the body surface, whose velocity there is `bodyVelocity`. `start` is the node's start of the substep
-/// and `center` the centre of the ellipsoid it met (eq. 10). Config::m_velocityRule selects the rule.
+/// The surfaces a placed node touches, for the velocity rule: the outward normals of the ellipsoids within a contact
+/// band of its final position (the placement normal first).
+struct btNodeContacts
+{
+	enum
+	{
+		kMaxContacts = 8 ///< more than 4 ellipsoids within a few millimetres of one point do not occur on fitted bodies
+	};
+	btVector3 m_normals[kMaxContacts];
+	int m_count;
+	btNodeContacts() : m_count(0) {}
+	void add(const btVector3& n)
+	{
+		if (m_count < kMaxContacts)
+			m_normals[m_count++] = n;
+	}
+};
+
+/// Adds the outward normal of every candidate cand[0, nc) whose surface is within `band` metres of p (first-order
+/// distance (|u| - 1) / |grad |u||, exact for spheres) to contacts.
+void btAddTouchingNormals(const btEllipsoidWorldCache& cache, const int* cand, int nc, const btVector3& p, btScalar band,
+						  btNodeContacts& contacts);
+
+/// The Euclidean projection of v onto the cone {w : w . n >= 0 for every contact normal n}: the nearest velocity
+/// that moves into none of the touched ellipsoids (exact in 3D: the nearest feasible one among v, its projections
+/// onto each plane and onto each line where two planes meet, and 0).
+btVector3 btProjectOntoContactCone(const btVector3& v, const btNodeContacts& contacts);
+
+/// The velocity rule after a node is placed at its final position, touching the surfaces in `contacts` (at least the
+/// placement normal); velocities are relative to the body surface, whose velocity there is `bodyVelocity`. `start`
+/// is the node's start of the substep, `surfacePoint` the entry point and `center` the centre of the ellipsoid it met
+/// (eq. 10). Config::m_velocityRule selects the rule: REMOVE_NORMAL_COULOMB projects the relative velocity onto the
+/// contact cone and reduces what is left by friction * |removed part|; PAPER_EQ10 scales it by eq. 10, then projects
+/// it onto the cone (no friction). Either way the node leaves with no velocity into any ellipsoid it touches: a
+/// velocity into a second ellipsoid of a crease is never kept. `motion` is the node's actual velocity relative to
+/// the body over the substep ((final position - start carried with the body) / dt): the result is no faster than its
+/// part along the surface (tangential to the placement normal), so |m_v| stays bounded by the real motion (issue 12
+/// item 1: placed at the entry of a deep path, a node kept the whole path's tangential speed, which grew every step).
 void btApplyVelocityRule(const btEllipsoidClothCollider::Config& config, const btVector3& bodyVelocity,
-						 btSoftBody::Node& node, const btVector3& surfacePoint, const btVector3& normal,
-						 const btVector3& start, const btVector3& center);
+						 btSoftBody::Node& node, const btNodeContacts& contacts, const btVector3& surfacePoint,
+						 const btVector3& start, const btVector3& center, const btVector3& motion);
 
 #endif // BT_ELLIPSOID_CLOTH_RESPONSE_H
