@@ -48,6 +48,17 @@ inline bool isFinite(const btVector3& a, const btVector3& b)
 	return s - s == btScalar(0);
 }
 
+btScalar largestSemiAxis(const btEllipsoidCompoundShape& compound)
+{
+	btScalar largest = btScalar(0);
+	for (int i = 0; i < compound.getNumEllipsoids(); ++i)
+	{
+		const btVector3& a = compound.getEllipsoid(i).m_semiAxes;
+		largest = btMax(largest, a[a.maxAxis()]);
+	}
+	return largest;
+}
+
 inline bool transformsEqual(const btTransform& a, const btTransform& b)
 {
 	const btMatrix3x3& ba = a.getBasis();
@@ -95,8 +106,53 @@ void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
 
 btEllipsoidClothCollider::btEllipsoidClothCollider(btSoftRigidDynamicsWorld* world, btCollisionObject* body,
 												   const Config& config)
-	: m_world(world), m_body(body), m_config(config), m_havePose(false)
+	: m_world(world),
+	  m_body(body),
+	  m_config(config),
+	  m_havePose(false),
+	  m_detached(false),
+	  m_configWarning(0),
+	  m_bodyExtent(0)
 {
+	validateConfig(config, 0, &m_configWarning);
+}
+
+bool btEllipsoidClothCollider::validateConfig(const Config& config, const char** error, const char** warning,
+											  btScalar bodyExtent)
+{
+	const char* dummyError = 0;
+	const char* dummyWarning = 0;
+	const char*& e = error ? *error : dummyError;
+	const char*& w = warning ? *warning : dummyWarning;
+	e = 0;
+	w = 0;
+	const btScalar skin = config.m_skinOffset, friction = config.m_friction;
+	if (!(skin - skin == btScalar(0)) || !(friction - friction == btScalar(0)))
+		e = "btEllipsoidClothCollider::Config: m_skinOffset and m_friction must be finite";
+	else if (skin < btScalar(0))
+		e = "btEllipsoidClothCollider::Config: m_skinOffset is negative (metres outside the surface, >= 0)";
+	else if (skin > btMax(btScalar(1), bodyExtent))
+		e = "btEllipsoidClothCollider::Config: m_skinOffset above 1 m and above the body's largest semi-axis (it is "
+			"in metres: 2 mm is 0.002)";
+	else if (friction < btScalar(0))
+		e = "btEllipsoidClothCollider::Config: m_friction is negative";
+	else if (config.m_velocityRule != REMOVE_NORMAL_COULOMB && config.m_velocityRule != PAPER_EQ10)
+		e = "btEllipsoidClothCollider::Config: m_velocityRule is not a VelocityRule";
+	else if (skin > btScalar(0.05))
+		w = "btEllipsoidClothCollider::Config: m_skinOffset above 5 cm is implausible for cloth (metres, not mm?)";
+	else if (friction > btScalar(2))
+		w = "btEllipsoidClothCollider::Config: m_friction above 2 is implausible for cloth";
+	return e == 0;
+}
+
+bool btEllipsoidClothCollider::setConfig(const Config& config, const char** error)
+{
+	const char* warning = 0;
+	if (!validateConfig(config, error, &warning, m_bodyExtent))
+		return false;
+	m_config = config;
+	m_configWarning = warning;
+	return true;
 }
 
 btEllipsoidClothCollider::~btEllipsoidClothCollider()
@@ -108,6 +164,8 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 														   btEllipsoidCompoundShape* ownedCompound, const Config& config)
 	: btEllipsoidClothCollider(world, body, config),
 	  m_ownedCompound(ownedCompound),
+	  m_bodyInWorld(false),
+	  m_worldIndex(-1),
 	  m_compound(compound),
 	  m_moving(false),
 	  m_substepIndex(0),
@@ -121,6 +179,28 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	m_deltaInverse.setIdentity();
 	m_stepStart.setIdentity();
 	m_stepTarget.setIdentity();
+	const btCollisionObjectArray& objects = world->getCollisionObjectArray();
+	m_worldIndex = objects.findLinearSearch(body);
+	m_bodyInWorld = m_worldIndex < objects.size();
+	m_bodyExtent = largestSemiAxis(*compound);
+}
+
+bool btEllipsoidClothColliderCore::bodyStillPresent()
+{
+	if (m_detached)
+		return false;
+	if (!m_bodyInWorld)
+		return true;
+	const btCollisionObjectArray& objects = m_world->getCollisionObjectArray();
+	if (m_worldIndex >= objects.size() || objects[m_worldIndex] != m_body)
+		m_worldIndex = objects.findLinearSearch(m_body); // the array is compacted on removals
+	if (m_worldIndex < objects.size())
+		return true;
+	// Ownership rule (btEllipsoidClothSoftBodySolver::installCollider): uninstall before removing the body.
+	btAssert(!"btEllipsoidClothCollider: the body was removed from the world while its collider was installed");
+	m_detached = true;
+	restoreResponse();
+	return false;
 }
 
 btEllipsoidClothColliderCore::~btEllipsoidClothColliderCore()
@@ -414,6 +494,18 @@ btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::getCollider(int i) con
 namespace
 {
 
+/// True for a plain btCompoundShape with at least one child, every child a btEllipsoidShape.
+bool isCompoundOfEllipsoids(const btCollisionShape* shape)
+{
+	const btCompoundShape* compound = dynamic_cast<const btCompoundShape*>(shape);
+	if (!compound || compound->getNumChildShapes() == 0)
+		return false;
+	for (int i = 0; i < compound->getNumChildShapes(); ++i)
+		if (!dynamic_cast<const btEllipsoidShape*>(compound->getChildShape(i)))
+			return false;
+	return true;
+}
+
 /// The body's shape as an ellipsoid compound: the shape itself, or a new compound wrapping a bare btEllipsoidShape
 /// (returned in *owned too, for the collider to delete). 0 with *reason set when the shape is neither or unusable.
 btEllipsoidCompoundShape* ellipsoidCompoundOf(btCollisionShape* shape, btEllipsoidCompoundShape** owned,
@@ -426,8 +518,11 @@ btEllipsoidCompoundShape* ellipsoidCompoundOf(btCollisionShape* shape, btEllipso
 		btEllipsoidShape* single = dynamic_cast<btEllipsoidShape*>(shape);
 		if (!single)
 		{
-			*reason = "btEllipsoidClothSoftBodySolver::installCollider: the body's shape is neither a "
-					  "btEllipsoidCompoundShape nor a btEllipsoidShape";
+			*reason = isCompoundOfEllipsoids(shape)
+						  ? "btEllipsoidClothSoftBodySolver::installCollider: the body's shape is a plain btCompoundShape "
+							"of btEllipsoidShape children; build a btEllipsoidCompoundShape with addEllipsoid instead"
+						  : "btEllipsoidClothSoftBodySolver::installCollider: the body's shape is neither a "
+							"btEllipsoidCompoundShape nor a btEllipsoidShape";
 			return 0;
 		}
 		void* mem = btAlignedAlloc(sizeof(btEllipsoidCompoundShape), 16);
@@ -435,12 +530,16 @@ btEllipsoidCompoundShape* ellipsoidCompoundOf(btCollisionShape* shape, btEllipso
 		(*owned)->addEllipsoid(btVector3(0, 0, 0), btMatrix3x3::getIdentity(), single->getScaledSemiAxes());
 		return *owned;
 	}
-	if (compound->getNumEllipsoids() == 0 || compound->getNumChildShapes() != compound->getNumEllipsoids())
+	if (compound->getNumChildShapes() != compound->getNumEllipsoids())
 	{
-		*reason = compound->getNumEllipsoids() == 0
-					  ? "btEllipsoidClothSoftBodySolver::installCollider: the compound has no ellipsoids"
-					  : "btEllipsoidClothSoftBodySolver::installCollider: the compound has children that are not "
-						"ellipsoids (added with addChildShape instead of addEllipsoid)";
+		*reason = "btEllipsoidClothSoftBodySolver::installCollider: the btEllipsoidCompoundShape has children added "
+				  "with addChildShape, which the collider does not see; add ellipsoids with addEllipsoid";
+		return 0;
+	}
+	if (compound->getNumEllipsoids() == 0)
+	{
+		*reason = "btEllipsoidClothSoftBodySolver::installCollider: the compound has no ellipsoids (add them with "
+				  "addEllipsoid)";
 		return 0;
 	}
 	return compound;
@@ -448,7 +547,7 @@ btEllipsoidCompoundShape* ellipsoidCompoundOf(btCollisionShape* shape, btEllipso
 
 } // namespace
 
-btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btSoftRigidDynamicsWorld* world,
+btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btDynamicsWorld* dynamicsWorld,
 																		  btCollisionObject* body,
 																		  const btEllipsoidClothCollider::Config& config,
 																		  const char** whyNot)
@@ -456,11 +555,22 @@ btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btSoft
 	const char* dummy = 0;
 	const char** reason = whyNot ? whyNot : &dummy;
 	*reason = 0;
-	if (!world)
+	if (!dynamicsWorld)
 	{
 		*reason = "btEllipsoidClothSoftBodySolver::installCollider: world is null";
 		return 0;
 	}
+	// The virtual world type, not the static type of the pointer: Bullet's examples C-cast worlds, and a
+	// btDeformableMultiBodyDynamicsWorld cast to btSoftRigidDynamicsWorld* is not one.
+	if (dynamicsWorld->getWorldType() != BT_SOFT_RIGID_DYNAMICS_WORLD)
+	{
+		*reason = dynamicsWorld->getWorldType() == BT_DEFORMABLE_MULTIBODY_DYNAMICS_WORLD
+					  ? "btEllipsoidClothSoftBodySolver::installCollider: btDeformableMultiBodyDynamicsWorld is not "
+						"supported (its btDeformableBodySolver has no post-solve hook); use btSoftRigidDynamicsWorld"
+					  : "btEllipsoidClothSoftBodySolver::installCollider: the world is not a btSoftRigidDynamicsWorld";
+		return 0;
+	}
+	btSoftRigidDynamicsWorld* world = static_cast<btSoftRigidDynamicsWorld*>(dynamicsWorld);
 	if (!body || !body->getCollisionShape())
 	{
 		*reason = "btEllipsoidClothSoftBodySolver::installCollider: body is null or has no collision shape";
@@ -476,7 +586,7 @@ btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btSoft
 		return 0;
 	}
 	for (int i = 0; i < m_colliders.size(); ++i)
-		if (m_colliders[i]->getBody() == body)
+		if (!m_colliders[i]->isDetached() && m_colliders[i]->getBody() == body)
 		{
 			*reason = "btEllipsoidClothSoftBodySolver::installCollider: a collider is already installed for this body";
 			return 0;
@@ -485,6 +595,15 @@ btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btSoft
 	const btEllipsoidCompoundShape* compound = ellipsoidCompoundOf(body->getCollisionShape(), &owned, reason);
 	if (!compound)
 		return 0;
+	if (!btEllipsoidClothCollider::validateConfig(config, reason, 0, largestSemiAxis(*compound)))
+	{
+		if (owned)
+		{
+			owned->~btEllipsoidCompoundShape();
+			btAlignedFree(owned);
+		}
+		return 0;
+	}
 	btEllipsoidClothColliderCore* collider = new btEllipsoidClothColliderCore(world, body, compound, owned, config);
 	m_colliders.push_back(collider);
 	for (int i = 0; i < softBodies.size(); ++i)
@@ -509,6 +628,12 @@ bool btEllipsoidClothSoftBodySolver::uninstallCollider(btEllipsoidClothCollider*
 void btEllipsoidClothSoftBodySolver::predictMotion(btScalar solverdt)
 {
 	btDefaultSoftBodySolver::predictMotion(solverdt);
+	// Before this substep's collision detection (which follows predictMotion): a soft body added since the last
+	// substep gets no Bullet response to an installed body even in its first step.
+	for (int c = 0; c < m_colliders.size(); ++c)
+		if (m_colliders[c]->bodyStillPresent())
+			for (int b = 0; b < m_softBodySet.size(); ++b)
+				m_colliders[c]->ensureResponseDisabled(m_softBodySet[b]);
 	// With drift iterations (diterations > 0) btSoftBody::solveConstraints overwrites m_q mid-solve, so the start
 	// of the substep is saved here (predictMotion has just set q = x_start).
 	m_startPositions.resize(m_softBodySet.size());
@@ -535,6 +660,8 @@ void btEllipsoidClothSoftBodySolver::solveConstraints(btScalar solverdt)
 	for (int c = 0; c < m_colliders.size(); ++c)
 	{
 		btEllipsoidClothColliderCore* collider = m_colliders[c];
+		if (!collider->bodyStillPresent())
+			continue;
 		collider->beginSubstep(solverdt);
 		for (int b = 0; b < m_softBodySet.size(); ++b)
 		{

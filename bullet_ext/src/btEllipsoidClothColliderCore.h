@@ -33,6 +33,10 @@ public:
 	/// Adds the substep's counters to the accumulated ones.
 	void endSubstep();
 
+	/// False once the body has left the world it was in at install (then the collider is detached: isDetached()).
+	/// Compares pointers only: a body deleted after its removal is never read.
+	bool bodyStillPresent();
+
 	/// Adds the body to the soft body's m_collisionDisabledObjects (if Config says so).
 	void ensureResponseDisabled(btSoftBody* softBody);
 	/// Removes the body from every soft body's m_collisionDisabledObjects of the world (uninstall).
@@ -68,6 +72,8 @@ private:
 	};
 
 	btEllipsoidCompoundShape* m_ownedCompound;
+	bool m_bodyInWorld;  ///< the body was in the world's collision object array at install
+	int m_worldIndex;    ///< where it was last seen there
 	const btEllipsoidCompoundShape* m_compound;
 	btTransform m_previousPose;           ///< body pose used in the previous substep
 	btTransform m_currentPose;            ///< body pose for this substep
