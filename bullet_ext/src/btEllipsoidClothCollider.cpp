@@ -422,11 +422,14 @@ BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoft
 btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry,
 													  const btVector3& q, int nc, const Substep& substep)
 {
+	// A node that starts within the skin goes back to its own clearance, not out to the full skin: pushed out by
+	// the skin every time its cloth's tension drew it onto the surface, resting cloth never came to rest.
+	const btScalar skin = btMin(substep.m_skin, btClearance(m_current[entry.m_ellipsoid], q));
 	btEntryPlacement placed;
-	btPlaceAtEntry(m_current, entry, substep.m_candidates, substep.m_tvals, nc, q, node.m_x, substep.m_skin, placed);
+	btPlaceAtEntry(m_current, entry, substep.m_candidates, substep.m_tvals, nc, q, node.m_x, skin, placed);
 	btVector3 point;
 	btScalar zeta;
-	if (!btKeepOutsideCandidates(m_current, substep.m_candidates, nc, placed, substep.m_skin, point, zeta))
+	if (!btKeepOutsideCandidates(m_current, substep.m_candidates, nc, placed, skin, point, zeta))
 	{
 		++m_lastStats.m_nodesRepaired;
 		bool moved;

@@ -127,6 +127,16 @@ bool btKeepOutsideCandidates(const btEllipsoidWorldCache& cache, const int* cand
 	return zeta >= btScalar(1);
 }
 
+btScalar btClearance(const btEllipsoidWorldCache::Entry& e, const btVector3& p)
+{
+	const btVector3 u = e.m_whiten * (p - e.m_center);
+	const btScalar r = u.length();
+	if (!(r > btScalar(1)))
+		return btScalar(0);
+	const btScalar gl = btWhitenedNormal(e.m_whiten, u).length() / r;
+	return gl > btScalar(0) ? (r - btScalar(1)) / gl : btScalar(0);
+}
+
 void btAddTouchingNormals(const btEllipsoidWorldCache& cache, const int* cand, int nc, const btVector3& p, btScalar band,
 						  btNodeContacts& contacts)
 {

@@ -23,6 +23,10 @@ struct btEntryPlacement
 	btVector3 m_center;  ///< centre of the entered ellipsoid (for eq. 10)
 };
 
+/// First-order distance of p outside ellipsoid e: (|u| - 1) / |grad |u|| with u = W (p - c) (exact for a sphere;
+/// 0 inside or at the centre).
+btScalar btClearance(const btEllipsoidWorldCache::Entry& e, const btVector3& p);
+
 /// The placement for the earliest entry of the path test over the candidates cand[0, nc) with entry parameters
 /// tvals (btEarliestEntry): entries within 1 micrometre of the earliest along the path are a tie (the path meets a
 /// crease of the union, Gong et al. 2018 Figure 6 case 1), and the skin offset then goes along the sum of their
