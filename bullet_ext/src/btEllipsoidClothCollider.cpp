@@ -168,6 +168,7 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_worldIndex(-1),
 	  m_compound(compound),
 	  m_moving(false),
+	  m_dynamicBody(0),
 	  m_substepIndex(0),
 	  m_substepCount(1),
 	  m_substepDt(btScalar(0))
@@ -302,6 +303,11 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 		m_deltaInverse.setIdentity();
 	}
 	m_current.update(m_compound, m_currentPose);
+	btRigidBody* rigid = btRigidBody::upcast(m_body);
+	m_dynamicBody = m_config.m_applyReactionToBody && rigid && !rigid->isStaticOrKinematicObject() &&
+							rigid->getInvMass() > btScalar(0)
+						? rigid
+						: 0;
 	m_lastStats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
 	m_lastStats.m_collisionCpuSeconds += threadCpuSeconds() - cpu0;
 }
@@ -471,8 +477,15 @@ void btEllipsoidClothColliderCore::respondVelocity(btSoftBody::Node& node, const
 	const int nt = substep.m_contactQuery.candidates(node.m_x, node.m_x, substep.m_contactCandidates);
 	btAddTouchingNormals(m_current, substep.m_contactCandidates, nt, node.m_x, substep.m_band, contacts);
 	const btVector3 motion = substep.m_dt > btScalar(0) ? (node.m_x - start) / substep.m_dt : btVector3(0, 0, 0);
+	const btVector3 before = node.m_v;
 	btApplyVelocityRule(m_config, bodyVelocityAt(surface, substep.m_dt), node, contacts, surface, start, center,
 						motion);
+	if (m_dynamicBody)
+	{
+		// Two-way coupling: the body takes the opposite of the node's momentum change, at the contact.
+		m_dynamicBody->applyImpulse((before - node.m_v) / node.m_im, surface - m_dynamicBody->getCenterOfMassPosition());
+		m_dynamicBody->activate();
+	}
 }
 
 // ---------------------------------------------------------------------------------------------------------------

@@ -13,6 +13,8 @@ public header shows only btEllipsoidClothCollider. Tests that craft node paths b
 #include "src/btEllipsoidNarrowPhase.h"
 #include "src/btEllipsoidUnionPushOut.h"
 
+class btRigidBody;
+
 class btEllipsoidClothColliderCore : public btEllipsoidClothCollider
 {
 public:
@@ -83,6 +85,7 @@ private:
 	btTransform m_stepStart;              ///< kinematic interpolation: pose at the start of the current step
 	btTransform m_stepTarget;             ///< kinematic interpolation: pose at its end
 	bool m_moving;
+	btRigidBody* m_dynamicBody; ///< the body when it takes the reaction impulses this substep (else 0)
 	int m_substepIndex;
 	int m_substepCount;
 	btScalar m_substepDt;

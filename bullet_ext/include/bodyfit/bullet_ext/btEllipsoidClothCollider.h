@@ -85,12 +85,17 @@ public:
 		btScalar m_friction;     ///< Coulomb coefficient for REMOVE_NORMAL_COULOMB (default 0.3)
 		VelocityRule m_velocityRule; ///< default REMOVE_NORMAL_COULOMB
 		bool m_disableBulletResponse; ///< add the body to m_collisionDisabledObjects of every soft body (default true)
+		/// A dynamic btRigidBody (inverse mass > 0, not kinematic) receives the reaction of every velocity change
+		/// the collider gives a node: -m_node (v_after - v_before) at the node (default true; static and kinematic
+		/// bodies are never affected).
+		bool m_applyReactionToBody;
 
 		Config()
 			: m_skinOffset(btScalar(0.002)),
 			  m_friction(btScalar(0.3)),
 			  m_velocityRule(REMOVE_NORMAL_COULOMB),
-			  m_disableBulletResponse(true)
+			  m_disableBulletResponse(true),
+			  m_applyReactionToBody(true)
 		{
 		}
 	};
