@@ -168,6 +168,8 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_worldIndex(-1),
 	  m_compound(compound),
 	  m_moving(false),
+	  m_hadPose(false),
+	  m_teleported(false),
 	  m_dynamicBody(0),
 	  m_substepIndex(0),
 	  m_substepCount(1),
@@ -270,6 +272,8 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 	const double cpu0 = threadCpuSeconds();
 	m_substepDt = dt;
 	const btTransform& now = m_body->getWorldTransform();
+	m_teleported = !m_havePose && m_hadPose;
+	m_hadPose = true;
 	if (!m_havePose)
 	{
 		m_previousPose = now;
@@ -382,6 +386,8 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 		btScalar zeta;
 		if (collideNode(node, q, substep, zeta))
 			minZeta = btMin(minZeta, zeta);
+		if (m_teleported)
+			leavePocket(node, substep, minZeta);
 	}
 	stats.m_minZeta = minZeta;
 	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
@@ -423,6 +429,24 @@ BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoft
 	++m_lastStats.m_nodesCorrected;
 	zeta = respondAtEntry(node, entry, q, nc, substep);
 	return true;
+}
+
+void btEllipsoidClothColliderCore::leavePocket(btSoftBody::Node& node, const Substep& substep, btScalar& minZeta)
+{
+	const btVector3 lo = m_current.getAabbMin(), hi = m_current.getAabbMax();
+	const btVector3& x = node.m_x;
+	if (x.x() < lo.x() || x.y() < lo.y() || x.z() < lo.z() || x.x() > hi.x() || x.y() > hi.y() || x.z() > hi.z())
+		return;
+	btPushOutResult out;
+	m_pushOut.leaveEnclosedPocket(m_current, x, substep.m_skin, out);
+	if (!out.m_moved)
+		return;
+	++m_lastStats.m_nodesPushedOut;
+	++m_lastStats.m_pushOutEnclosed;
+	const btVector3 start = node.m_x;
+	node.m_x = out.m_point;
+	respondVelocity(node, out.m_normal, out.m_point - out.m_normal * substep.m_skin, start, out.m_center, substep);
+	minZeta = btMin(minZeta, out.m_zeta);
 }
 
 btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry,

@@ -85,6 +85,8 @@ private:
 	btTransform m_stepStart;              ///< kinematic interpolation: pose at the start of the current step
 	btTransform m_stepTarget;             ///< kinematic interpolation: pose at its end
 	bool m_moving;
+	bool m_hadPose;    ///< some substep has run (a later resetBodyPose() is a teleport)
+	bool m_teleported; ///< this substep follows resetBodyPose(): nodes left in pockets of the union are moved out
 	btRigidBody* m_dynamicBody; ///< the body when it takes the reaction impulses this substep (else 0)
 	int m_substepIndex;
 	int m_substepCount;
@@ -97,6 +99,8 @@ private:
 	btTransform interpolatedKinematicPose();
 	btVector3 bodyVelocityAt(const btVector3& worldPoint, btScalar dt) const;
 	bool collideNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep, btScalar& zeta);
+	/// After a teleport: a node outside every ellipsoid but in a pocket the union encloses leaves it.
+	void leavePocket(btSoftBody::Node& node, const Substep& substep, btScalar& minZeta);
 	btScalar respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry, const btVector3& q, int nc,
 							const Substep& substep);
 	/// Union push-out from `from`, then the velocity rule at the exit; moved = false if `from` was outside already

@@ -78,34 +78,65 @@ void btEllipsoidUnionPushOut::pushOut(const btEllipsoidWorldCache& cache, const 
 		bestDir = shortestLastChordExit(from, dirs, ndirs, skin, point, bestExit);
 		out.m_enclosed = bestDir >= 0;
 	}
-	btVector3 normal;
 	if (bestDir >= 0)
 	{
-		out.m_zeta = minZetaAll(cache, point, 0);
-		normal = dirs[bestDir];
-		if (bestExit >= 0)
-		{
-			const btEllipsoidWorldCache::Entry& e = cache[bestExit];
-			const btVector3 g = btWhitenedNormal(e.m_whiten, e.m_whiten * (point - e.m_center));
-			const btScalar gl = g.length();
-			if (gl > SIMD_EPSILON)
-				normal = g / gl;
-		}
+		finishExit(point, dirs[bestDir], bestExit, from, out);
+		return;
 	}
-	else
-	{
-		int d0 = 0;
-		for (int d = 1; d < ndirs; ++d)
-			if (nominal[d] < nominal[d0])
-				d0 = d;
-		leaveUnionBox(from, dirs[d0], skin, point);
-		out.m_zeta = minZetaAll(cache, point, 0);
-		normal = dirs[d0];
-		out.m_fallback = true;
-	}
+	int d0 = 0;
+	for (int d = 1; d < ndirs; ++d)
+		if (nominal[d] < nominal[d0])
+			d0 = d;
+	leaveUnionBox(from, dirs[d0], skin, point);
+	out.m_fallback = true;
+	finishExit(point, dirs[d0], -1, from, out);
+}
+
+btVector3 btEllipsoidUnionPushOut::latticeDirection(int d)
+{
+	const int i = d < 13 ? d : d + 1; // lattice index 0..26 without the centre (13)
+	return btVector3(btScalar(i % 3 - 1), btScalar((i / 3) % 3 - 1), btScalar(i / 9 - 1)).normalized();
+}
+
+void btEllipsoidUnionPushOut::finishExit(const btVector3& point, const btVector3& dir, int exitEllipsoid,
+										 const btVector3& from, btPushOutResult& out) const
+{
 	out.m_point = point;
-	out.m_normal = normal;
-	out.m_center = bestExit >= 0 ? cache[bestExit].m_center : from;
+	out.m_zeta = minZetaAll(*m_cache, point, 0);
+	out.m_normal = dir;
+	out.m_center = exitEllipsoid >= 0 ? (*m_cache)[exitEllipsoid].m_center : from;
+	if (exitEllipsoid >= 0)
+	{
+		const btEllipsoidWorldCache::Entry& e = (*m_cache)[exitEllipsoid];
+		const btVector3 g = btWhitenedNormal(e.m_whiten, e.m_whiten * (point - e.m_center));
+		const btScalar gl = g.length();
+		if (gl > SIMD_EPSILON)
+			out.m_normal = g / gl;
+	}
+}
+
+void btEllipsoidUnionPushOut::leaveEnclosedPocket(const btEllipsoidWorldCache& cache, const btVector3& from,
+												  btScalar skin, btPushOutResult& out)
+{
+	m_cache = &cache;
+	out.m_moved = false;
+	out.m_enclosed = false;
+	out.m_fallback = false;
+	out.m_point = from;
+	out.m_zeta = minZetaAll(cache, from, 0);
+	if (escapesUnion(from, latticeDirection(0)))
+		return;
+	btVector3 dirs[26];
+	for (int d = 0; d < 26; ++d)
+		dirs[d] = latticeDirection(d);
+	btVector3 point;
+	int exit = -1;
+	const int best = shortestLastChordExit(from, dirs, 26, skin, point, exit);
+	if (best < 0)
+		return;
+	out.m_moved = true;
+	out.m_enclosed = true;
+	finishExit(point, dirs[best], exit, from, out);
 }
 
 int btEllipsoidUnionPushOut::candidateDirections(const btVector3& from, btVector3* dirs) const
@@ -362,8 +393,7 @@ bool btEllipsoidUnionPushOut::escapesUnion(const btVector3& p, const btVector3& 
 		btVector3 dir = preferred;
 		if (d >= 0)
 		{
-			const int i = d < 13 ? d : d + 1; // lattice index 0..26 without the centre (13)
-			dir = btVector3(btScalar(i % 3 - 1), btScalar((i / 3) % 3 - 1), btScalar(i / 9 - 1)).normalized();
+			dir = latticeDirection(d);
 		}
 		bool blocked = false;
 		for (int k = 0; k < cache.size() && !blocked; ++k)

@@ -32,6 +32,13 @@ public:
 	/// Pushes the point `from` out of the union of the cache's ellipsoids, `skin` (>= 0) beyond its surface.
 	void pushOut(const btEllipsoidWorldCache& cache, const btVector3& from, btScalar skin, btPushOutResult& out);
 
+	/// A point outside every ellipsoid may still sit in a pocket the union encloses (a gap under the skin of a fitted
+	/// body, where the cloth can land when the body is teleported). If no ray of the escape test leaves the union
+	/// from `from`, the point leaves along the shortest of the 26 lattice directions past the last chord (m_moved and
+	/// m_enclosed set); otherwise nothing moves (m_moved false).
+	void leaveEnclosedPocket(const btEllipsoidWorldCache& cache, const btVector3& from, btScalar skin,
+							 btPushOutResult& out);
+
 	/// Smallest zeta at p over every ellipsoid whose world box holds p (SIMD_INFINITY if none: then p is outside all);
 	/// \param which receives its index or -1.
 	static btScalar minZetaAll(const btEllipsoidWorldCache& cache, const btVector3& p, int* which);
@@ -50,6 +57,9 @@ private:
 	btAlignedObjectArray<int> m_intervalOwner;
 
 	int candidateDirections(const btVector3& from, btVector3* dirs) const;
+	static btVector3 latticeDirection(int d);
+	void finishExit(const btVector3& point, const btVector3& dir, int exitEllipsoid, const btVector3& from,
+					btPushOutResult& out) const;
 	int bestEscapingExit(const btVector3& from, const btVector3* dirs, const btScalar* nominal, int ndirs, btScalar skin,
 						 btVector3& out, int& bestExit);
 	int shortestLastChordExit(const btVector3& from, const btVector3* dirs, int ndirs, btScalar skin, btVector3& out,
