@@ -134,8 +134,8 @@ bool btEllipsoidClothCollider::validateConfig(const Config& config, const char**
 	else if (skin > btMax(btScalar(1), bodyExtent))
 		e = "btEllipsoidClothCollider::Config: m_skinOffset above 1 m and above the body's largest semi-axis (it is "
 			"in metres: 2 mm is 0.002)";
-	else if (friction < btScalar(0))
-		e = "btEllipsoidClothCollider::Config: m_friction is negative";
+	else if (friction < btScalar(0) && friction != kBulletFriction())
+		e = "btEllipsoidClothCollider::Config: m_friction is negative (kBulletFriction(), -1, means kDF x body friction)";
 	else if (config.m_velocityRule != REMOVE_NORMAL_COULOMB && config.m_velocityRule != PAPER_EQ10)
 		e = "btEllipsoidClothCollider::Config: m_velocityRule is not a VelocityRule";
 	else if (skin > btScalar(0.05))
@@ -356,6 +356,9 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	if (ne == 0 || softBody->m_nodes.size() == 0)
 		return;
 	Substep substep(m_current, btMax(m_config.m_skinOffset, btScalar(0)), dt);
+	// Bullet's own soft-rigid contact uses kDF x the body's friction (btSoftBody's rigid contacts); Config overrides.
+	substep.m_friction = m_config.m_friction >= btScalar(0) ? m_config.m_friction
+															: softBody->m_cfg.kDF * m_body->getFriction();
 	m_candidates.resize(ne);
 	substep.m_candidates = &m_candidates[0];
 	m_candidateT.resize(ne);
@@ -445,7 +448,8 @@ void btEllipsoidClothColliderCore::leavePocket(btSoftBody::Node& node, const Sub
 	++m_lastStats.m_pushOutEnclosed;
 	const btVector3 start = node.m_x;
 	node.m_x = out.m_point;
-	respondVelocity(node, out.m_normal, out.m_point - out.m_normal * substep.m_skin, start, out.m_center, substep);
+	respondVelocity(node, out.m_normal, out.m_point - out.m_normal * substep.m_skin, start, out.m_center, substep,
+					btScalar(0));
 	minZeta = btMin(minZeta, out.m_zeta);
 }
 
@@ -465,11 +469,18 @@ btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, co
 		bool moved;
 		zeta = pushNodeOut(node, point, q, substep, moved);
 		if (!moved)
-			respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, substep);
+			respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, substep, btScalar(0));
 		return zeta;
 	}
 	node.m_x = point;
-	respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, substep);
+	if (respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, substep, btScalar(1) - entry.m_t))
+	{
+		// Held by static friction (or moving straight in): the node stays where it started the substep, outside
+		// every candidate (the path test found q outside). The entry point lies down the path, and a node placed
+		// there every substep crept downhill under any friction.
+		node.m_x = q;
+		zeta = btMinZetaPacked(m_current.getPackedRecords(), substep.m_candidates, nc, q, 0);
+	}
 	return zeta;
 }
 
@@ -487,29 +498,54 @@ btScalar btEllipsoidClothColliderCore::pushNodeOut(btSoftBody::Node& node, const
 	m_lastStats.m_pushOutEnclosed += out.m_enclosed ? 1 : 0;
 	m_lastStats.m_pushOutFallbacks += out.m_fallback ? 1 : 0;
 	node.m_x = out.m_point;
-	respondVelocity(node, out.m_normal, out.m_point - out.m_normal * substep.m_skin, start, out.m_center, substep);
+	respondVelocity(node, out.m_normal, out.m_point - out.m_normal * substep.m_skin, start, out.m_center, substep,
+					btScalar(0));
 	return out.m_zeta;
 }
 
-void btEllipsoidClothColliderCore::respondVelocity(btSoftBody::Node& node, const btVector3& normal,
+bool btEllipsoidClothColliderCore::respondVelocity(btSoftBody::Node& node, const btVector3& normal,
 												   const btVector3& surface, const btVector3& start,
-												   const btVector3& center, const Substep& substep)
+												   const btVector3& center, const Substep& substep, btScalar remaining)
 {
 	// Every surface the node now touches, so no velocity into a second ellipsoid of a crease survives.
 	btNodeContacts contacts;
 	contacts.add(normal);
 	const int nt = substep.m_contactQuery.candidates(node.m_x, node.m_x, substep.m_contactCandidates);
 	btAddTouchingNormals(m_current, substep.m_contactCandidates, nt, node.m_x, substep.m_band, contacts);
-	const btVector3 motion = substep.m_dt > btScalar(0) ? (node.m_x - start) / substep.m_dt : btVector3(0, 0, 0);
+	const btVector3 bodyVelocity = bodyVelocityAt(surface, substep.m_dt);
 	const btVector3 before = node.m_v;
-	btApplyVelocityRule(m_config, bodyVelocityAt(surface, substep.m_dt), node, contacts, surface, start, center,
-						motion);
+	const btVector3 relative = node.m_v - bodyVelocity;
+	btVector3 vr = btRelativeVelocityAfterContact(m_config.m_velocityRule, substep.m_friction, relative, contacts,
+												  surface, start, center);
+	const bool stopped = relative.length2() > btScalar(0) && vr.length2() == btScalar(0);
+	if (remaining > btScalar(0) && !stopped)
+		slideAlong(node, vr * (remaining * substep.m_dt), substep);
+	if (substep.m_dt > btScalar(0))
+		vr = btCapBySurfaceMotion(vr, normal, (node.m_x - start) / substep.m_dt);
+	node.m_v = bodyVelocity + vr;
 	if (m_dynamicBody)
 	{
 		// Two-way coupling: the body takes the opposite of the node's momentum change, at the contact.
 		m_dynamicBody->applyImpulse((before - node.m_v) / node.m_im, surface - m_dynamicBody->getCenterOfMassPosition());
 		m_dynamicBody->activate();
 	}
+	return stopped;
+}
+
+void btEllipsoidClothColliderCore::slideAlong(btSoftBody::Node& node, const btVector3& displacement,
+											  const Substep& substep)
+{
+	// The node met the surface after part of the substep; for the rest it moves with its new velocity, which has no
+	// component into the surfaces it touches. Taken only if that short path enters no ellipsoid (else the node
+	// stays at the entry, blocked, e.g. in a crease).
+	const btVector3 from = node.m_x;
+	const btVector3 to = from + displacement;
+	const int nc = substep.m_query.candidates(from, to, substep.m_contactCandidates);
+	btPathEntry entry;
+	btEarliestEntry(m_current.getPackedRecords(), substep.m_contactCandidates, nc, btPathEnds(from, to), substep.m_tvals,
+					entry);
+	if (!entry.m_startInside && entry.m_ellipsoid < 0 && entry.m_minZetaEnd >= btScalar(1))
+		node.m_x = to;
 }
 
 // ---------------------------------------------------------------------------------------------------------------

@@ -55,7 +55,8 @@ private:
 		btEllipsoidWorldCache::PathQuery m_query;
 		btEllipsoidWorldCache::PathQuery m_contactQuery; ///< the ellipsoids within the contact band of a point
 		btScalar m_skin;
-		btScalar m_band; ///< contactBand(m_skin)
+		btScalar m_band;     ///< contactBand(m_skin)
+		btScalar m_friction; ///< Coulomb coefficient for this soft body (Config's, or kDF x body friction)
 		btScalar m_dt;
 		int* m_candidates;
 		btScalar* m_tvals;
@@ -65,6 +66,7 @@ private:
 			  m_contactQuery(cache, contactBand(skin)),
 			  m_skin(skin),
 			  m_band(contactBand(skin)),
+			  m_friction(0),
 			  m_dt(dt),
 			  m_candidates(0),
 			  m_tvals(0),
@@ -107,8 +109,14 @@ private:
 	/// (the node is left at `from`, its velocity unchanged).
 	btScalar pushNodeOut(btSoftBody::Node& node, const btVector3& from, const btVector3& start, const Substep& substep,
 						 bool& moved);
-	void respondVelocity(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface,
-						 const btVector3& start, const btVector3& center, const Substep& substep);
+	/// The velocity rule at the node's final position (every touched surface), the slide for the `remaining`
+	/// fraction of the substep after it met the surface, the cap by its real motion, and the reaction on a dynamic body.
+	/// \return true if the contact stopped a moving node (zero relative velocity after it: held by static friction,
+	/// or moving straight in); the caller then keeps the node at its start.
+	bool respondVelocity(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface,
+						 const btVector3& start, const btVector3& center, const Substep& substep, btScalar remaining);
+	/// Moves the node by `displacement` if that path enters no ellipsoid.
+	void slideAlong(btSoftBody::Node& node, const btVector3& displacement, const Substep& substep);
 };
 
 #endif // BT_ELLIPSOID_CLOTH_COLLIDER_CORE_H

@@ -207,12 +207,12 @@ btVector3 btProjectOntoContactCone(const btVector3& v, const btNodeContacts& con
 	return best;
 }
 
-void btApplyVelocityRule(const btEllipsoidClothCollider::Config& config, const btVector3& bodyVelocity,
-						 btSoftBody::Node& node, const btNodeContacts& contacts, const btVector3& surfacePoint,
-						 const btVector3& start, const btVector3& center, const btVector3& motion)
+btVector3 btRelativeVelocityAfterContact(btEllipsoidClothCollider::VelocityRule rule, btScalar friction,
+										 const btVector3& relative, const btNodeContacts& contacts,
+										 const btVector3& surfacePoint, const btVector3& start, const btVector3& center)
 {
-	btVector3 vr = node.m_v - bodyVelocity;
-	if (config.m_velocityRule == btEllipsoidClothCollider::PAPER_EQ10)
+	btVector3 vr = relative;
+	if (rule == btEllipsoidClothCollider::PAPER_EQ10)
 	{
 		// Gong et al. 2018, eq. 10: v_c = v_n |c P0| / (|c P0| + |P0 p0|).
 		const btScalar cp = (surfacePoint - center).length();
@@ -220,24 +220,20 @@ void btApplyVelocityRule(const btEllipsoidClothCollider::Config& config, const b
 		const btScalar denom = cp + pq;
 		if (denom > btScalar(0))
 			vr *= cp / denom;
-		vr = btProjectOntoContactCone(vr, contacts);
+		return btProjectOntoContactCone(vr, contacts);
 	}
-	else
-	{
-		// Remove the velocity into the touched surfaces; Coulomb friction reduces what is left (tangential to the
-		// active surfaces) by friction * |removed|. With one contact this is the normal/tangential split.
-		const btVector3 vt = btProjectOntoContactCone(vr, contacts);
-		const btScalar removed = (vr - vt).length();
-		const btScalar vtLen = vt.length();
-		const btScalar drop = btMax(config.m_friction, btScalar(0)) * removed;
-		vr = vtLen <= drop ? btVector3(0, 0, 0) : vt * ((vtLen - drop) / vtLen);
-	}
-	// No faster than the node really moved along the surface: placed at the entry, it covered only part of its
-	// path, and a velocity kept whole would outgrow its motion step after step.
-	const btVector3& n = contacts.m_normals[0];
-	const btScalar along = (motion - n * motion.dot(n)).length();
-	const btScalar speed = vr.length();
-	if (speed > along)
-		vr *= along / speed;
-	node.m_v = bodyVelocity + vr;
+	// Remove the velocity into the touched surfaces; Coulomb friction reduces what is left (tangential to the active
+	// surfaces) by friction * |removed|. With one contact this is the normal/tangential split.
+	const btVector3 vt = btProjectOntoContactCone(vr, contacts);
+	const btScalar removed = (vr - vt).length();
+	const btScalar vtLen = vt.length();
+	const btScalar drop = btMax(friction, btScalar(0)) * removed;
+	return vtLen <= drop ? btVector3(0, 0, 0) : vt * ((vtLen - drop) / vtLen);
+}
+
+btVector3 btCapBySurfaceMotion(const btVector3& relative, const btVector3& normal, const btVector3& motion)
+{
+	const btScalar along = (motion - normal * motion.dot(normal)).length();
+	const btScalar speed = relative.length();
+	return speed > along ? relative * (along / speed) : relative;
 }

@@ -70,18 +70,20 @@ void btAddTouchingNormals(const btEllipsoidWorldCache& cache, const int* cand, i
 /// onto each plane and onto each line where two planes meet, and 0).
 btVector3 btProjectOntoContactCone(const btVector3& v, const btNodeContacts& contacts);
 
-/// The velocity rule after a node is placed at its final position, touching the surfaces in `contacts` (at least the
-/// placement normal); velocities are relative to the body surface, whose velocity there is `bodyVelocity`. `start`
-/// is the node's start of the substep, `surfacePoint` the entry point and `center` the centre of the ellipsoid it met
-/// (eq. 10). Config::m_velocityRule selects the rule: REMOVE_NORMAL_COULOMB projects the relative velocity onto the
-/// contact cone and reduces what is left by friction * |removed part|; PAPER_EQ10 scales it by eq. 10, then projects
-/// it onto the cone (no friction). Either way the node leaves with no velocity into any ellipsoid it touches: a
-/// velocity into a second ellipsoid of a crease is never kept. `motion` is the node's actual velocity relative to
-/// the body over the substep ((final position - start carried with the body) / dt): the result is no faster than its
-/// part along the surface (tangential to the placement normal), so |m_v| stays bounded by the real motion (issue 12
-/// item 1: placed at the entry of a deep path, a node kept the whole path's tangential speed, which grew every step).
-void btApplyVelocityRule(const btEllipsoidClothCollider::Config& config, const btVector3& bodyVelocity,
-						 btSoftBody::Node& node, const btNodeContacts& contacts, const btVector3& surfacePoint,
-						 const btVector3& start, const btVector3& center, const btVector3& motion);
+/// The velocity rule after a node is placed, touching the surfaces in `contacts` (at least the placement normal):
+/// takes and returns the velocity relative to the body surface. `start` is the node's start of the substep,
+/// `surfacePoint` the entry point and `center` the centre of the ellipsoid it met (eq. 10). `rule`
+/// (Config::m_velocityRule): REMOVE_NORMAL_COULOMB projects the relative velocity onto the contact cone and reduces
+/// what is left by `friction` * |removed part|; PAPER_EQ10 scales it by eq. 10, then projects it onto the cone (no
+/// friction). Either way the result moves into no ellipsoid the node touches: a velocity into a second ellipsoid of
+/// a crease is never kept (issue 12 item 1: it grew without bound).
+btVector3 btRelativeVelocityAfterContact(btEllipsoidClothCollider::VelocityRule rule, btScalar friction,
+										 const btVector3& relative, const btNodeContacts& contacts,
+										 const btVector3& surfacePoint, const btVector3& start, const btVector3& center);
+
+/// The relative velocity shortened to the node's real motion along the surface: `motion` is (final position -
+/// start carried with the body) / dt, and its part tangential to `normal` bounds the result's length (a node that
+/// could not slide, blocked in a crease, keeps no speed it does not have).
+btVector3 btCapBySurfaceMotion(const btVector3& relative, const btVector3& normal, const btVector3& motion);
 
 #endif // BT_ELLIPSOID_CLOTH_RESPONSE_H

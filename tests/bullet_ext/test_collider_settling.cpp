@@ -63,7 +63,11 @@ TEST_CASE("settling: a node resting in the crease keeps no velocity into either 
 	ClothScene scene(creaseBody());
 	// A single free node dropped just above the crease line (x where the two surfaces meet at the top).
 	btSoftBody* node = scene.addNodes({btVector3(0.01f, 0.2f, 0)});
-	REQUIRE(scene.install());
+	// Friction 0.5 holds it where it lands (the crease is not level; with Bullet's default kDF 0.2 x body friction
+	// 0.5 it slides along it, which is real motion).
+	btEllipsoidClothCollider::Config config;
+	config.m_friction = btScalar(0.5);
+	REQUIRE(scene.install(config));
 	const double worst = worstExcessAfterLanding(scene, node, 240, 1.0 / 60);
 	CHECK(worst < 0.5);
 	// At rest in the crease its velocity is what it moves: below 1 cm/s after 4 s (gravity adds 0.16 m/s a step,
@@ -90,4 +94,32 @@ TEST_CASE("settling: the contact cone projection removes velocity into every tou
 	CHECK(double((w - btVector3(-0.5, 0.5, 0)).length()) < 1e-6);
 	// Already feasible: unchanged.
 	CHECK(btProjectOntoContactCone(btVector3(0, 1, 0.3), contacts) == btVector3(0, 1, 0.3));
+}
+
+TEST_CASE("friction: the cloth's kDF times the body's friction, as Bullet combines them, unless Config overrides",
+		  "[bullet_ext][collider][friction]")
+{
+	// A free node on a 0.3 m sphere, 20 degrees from the top (slope tan 20 = 0.36): Coulomb friction 1 holds it,
+	// friction 0 lets it slide. Returns how far it moved in 1 s.
+	auto slide = [](btScalar kDF, btScalar bodyFriction, btScalar configFriction) {
+		ClothScene scene(singleEllipsoid(btVector3(0, 0, 0), btMatrix3x3::getIdentity(), btVector3(0.3, 0.3, 0.3)));
+		const double a = 20.0 * SIMD_PI / 180.0;
+		const btVector3 start(btScalar(0.303 * std::sin(a)), btScalar(0.303 * std::cos(a)), 0);
+		btSoftBody* node = scene.addNodes({start});
+		node->m_cfg.kDF = kDF;
+		scene.body()->setFriction(bodyFriction);
+		btEllipsoidClothCollider::Config config;
+		config.m_friction = configFriction;
+		REQUIRE(scene.install(config));
+		for (int i = 0; i < 60; ++i)
+			scene.step(btScalar(1.0 / 60));
+		return double((node->m_nodes[0].m_x - start).length());
+	};
+	const btScalar bullet = btEllipsoidClothCollider::kBulletFriction();
+	// Distances: held, it only settles onto the skin (< 1 cm); sliding freely for 1 s it moves > 10 cm.
+	CHECK(slide(1, 1, bullet) < 0.01);        // kDF 1 x body 1 = 1
+	CHECK(slide(0, 1, bullet) > 0.1);         // kDF 0: no friction
+	CHECK(slide(1, 0, bullet) > 0.1);         // body friction 0: no friction
+	CHECK(slide(0, 0, btScalar(1)) < 0.01);   // Config overrides both
+	CHECK(slide(1, 1, btScalar(0)) > 0.1);
 }

@@ -79,10 +79,16 @@ public:
 		PAPER_EQ10 = 1
 	};
 
+	/// The Config::m_friction value that means "as Bullet combines it" (kDF x body friction).
+	static btScalar kBulletFriction() { return btScalar(-1); }
+
 	struct Config
 	{
 		btScalar m_skinOffset;   ///< metres the node is placed outside the surface (default 2 mm)
-		btScalar m_friction;     ///< Coulomb coefficient for REMOVE_NORMAL_COULOMB (default 0.3)
+		/// Coulomb coefficient for REMOVE_NORMAL_COULOMB. The default, kBulletFriction (-1), combines the cloth's and
+		/// the body's settings as Bullet does for its own soft-rigid contacts: soft body m_cfg.kDF times the body's
+		/// getFriction() (per soft body, read every substep); any value >= 0 overrides them.
+		btScalar m_friction;
 		VelocityRule m_velocityRule; ///< default REMOVE_NORMAL_COULOMB
 		bool m_disableBulletResponse; ///< add the body to m_collisionDisabledObjects of every soft body (default true)
 		/// A dynamic btRigidBody (inverse mass > 0, not kinematic) receives the reaction of every velocity change
@@ -92,7 +98,7 @@ public:
 
 		Config()
 			: m_skinOffset(btScalar(0.002)),
-			  m_friction(btScalar(0.3)),
+			  m_friction(kBulletFriction()),
 			  m_velocityRule(REMOVE_NORMAL_COULOMB),
 			  m_disableBulletResponse(true),
 			  m_applyReactionToBody(true)
