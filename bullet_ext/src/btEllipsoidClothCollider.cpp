@@ -4,7 +4,7 @@ The response follows Gong et al. 2018, sec. 4: all ellipsoids hit along the node
 point nearest the start position wins (which removes the paper's Figure 6 cases 1-3), the node goes there.
 This file: the collider's lifecycle (install, body pose per substep, the solver that drives it) and the node loop
 that runs the phases: broad phase btEllipsoidWorldCache::PathQuery (btEllipsoidCompoundShape.cpp), narrow phase
-btEarliestEntry (btEllipsoidNarrowPhase.h), response (btEllipsoidClothResponse.h), union push-out
+btEarliestEntry (btEllipsoidNarrowPhase.h), response (btEllipsoidClothResponse.cpp), union push-out
 (btEllipsoidUnionPushOut.cpp).
 */
 
@@ -46,6 +46,17 @@ inline bool isFinite(const btVector3& a, const btVector3& b)
 {
 	const btScalar s = a.x() + a.y() + a.z() + b.x() + b.y() + b.z();
 	return s - s == btScalar(0);
+}
+
+btScalar largestSemiAxis(const btEllipsoidCompoundShape& compound)
+{
+	btScalar largest = btScalar(0);
+	for (int i = 0; i < compound.getNumEllipsoids(); ++i)
+	{
+		const btVector3& a = compound.getEllipsoid(i).m_semiAxes;
+		largest = btMax(largest, a[a.maxAxis()]);
+	}
+	return largest;
 }
 
 inline bool transformsEqual(const btTransform& a, const btTransform& b)
@@ -95,8 +106,54 @@ void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
 
 btEllipsoidClothCollider::btEllipsoidClothCollider(btSoftRigidDynamicsWorld* world, btCollisionObject* body,
 												   const Config& config)
-	: m_world(world), m_body(body), m_config(config), m_havePose(false), m_precisionWarning(0)
+	: m_world(world),
+	  m_body(body),
+	  m_config(config),
+	  m_havePose(false),
+	  m_detached(false),
+	  m_configWarning(0),
+	  m_precisionWarning(0),
+	  m_bodyExtent(0)
 {
+	validateConfig(config, 0, &m_configWarning);
+}
+
+bool btEllipsoidClothCollider::validateConfig(const Config& config, const char** error, const char** warning,
+											  btScalar bodyExtent)
+{
+	const char* dummyError = 0;
+	const char* dummyWarning = 0;
+	const char*& e = error ? *error : dummyError;
+	const char*& w = warning ? *warning : dummyWarning;
+	e = 0;
+	w = 0;
+	const btScalar skin = config.m_skinOffset, friction = config.m_friction;
+	if (!(skin - skin == btScalar(0)) || !(friction - friction == btScalar(0)))
+		e = "btEllipsoidClothCollider::Config: m_skinOffset and m_friction must be finite";
+	else if (skin < btScalar(0))
+		e = "btEllipsoidClothCollider::Config: m_skinOffset is negative (metres outside the surface, >= 0)";
+	else if (skin > btMax(btScalar(1), bodyExtent))
+		e = "btEllipsoidClothCollider::Config: m_skinOffset above 1 m and above the body's largest semi-axis (it is "
+			"in metres: 2 mm is 0.002)";
+	else if (friction < btScalar(0) && friction != kBulletFriction())
+		e = "btEllipsoidClothCollider::Config: m_friction is negative (kBulletFriction(), -1, means kDF x body friction)";
+	else if (config.m_velocityRule != REMOVE_NORMAL_COULOMB && config.m_velocityRule != PAPER_EQ10)
+		e = "btEllipsoidClothCollider::Config: m_velocityRule is not a VelocityRule";
+	else if (skin > btScalar(0.05))
+		w = "btEllipsoidClothCollider::Config: m_skinOffset above 5 cm is implausible for cloth (metres, not mm?)";
+	else if (friction > btScalar(2))
+		w = "btEllipsoidClothCollider::Config: m_friction above 2 is implausible for cloth";
+	return e == 0;
+}
+
+bool btEllipsoidClothCollider::setConfig(const Config& config, const char** error)
+{
+	const char* warning = 0;
+	if (!validateConfig(config, error, &warning, m_bodyExtent))
+		return false;
+	m_config = config;
+	m_configWarning = warning;
+	return true;
 }
 
 btEllipsoidClothCollider::~btEllipsoidClothCollider()
@@ -108,8 +165,13 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 														   btEllipsoidCompoundShape* ownedCompound, const Config& config)
 	: btEllipsoidClothCollider(world, body, config),
 	  m_ownedCompound(ownedCompound),
+	  m_bodyInWorld(false),
+	  m_worldIndex(-1),
 	  m_compound(compound),
 	  m_moving(false),
+	  m_hadPose(false),
+	  m_teleported(false),
+	  m_dynamicBody(0),
 	  m_substepIndex(0),
 	  m_substepCount(1),
 	  m_substepDt(btScalar(0))
@@ -121,6 +183,28 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	m_deltaInverse.setIdentity();
 	m_stepStart.setIdentity();
 	m_stepTarget.setIdentity();
+	const btCollisionObjectArray& objects = world->getCollisionObjectArray();
+	m_worldIndex = objects.findLinearSearch(body);
+	m_bodyInWorld = m_worldIndex < objects.size();
+	m_bodyExtent = largestSemiAxis(*compound);
+}
+
+bool btEllipsoidClothColliderCore::bodyStillPresent()
+{
+	if (m_detached)
+		return false;
+	if (!m_bodyInWorld)
+		return true;
+	const btCollisionObjectArray& objects = m_world->getCollisionObjectArray();
+	if (m_worldIndex >= objects.size() || objects[m_worldIndex] != m_body)
+		m_worldIndex = objects.findLinearSearch(m_body); // the array is compacted on removals
+	if (m_worldIndex < objects.size())
+		return true;
+	// Ownership rule (btEllipsoidClothSoftBodySolver::installCollider): uninstall before removing the body.
+	btAssert(!"btEllipsoidClothCollider: the body was removed from the world while its collider was installed");
+	m_detached = true;
+	restoreResponse();
+	return false;
 }
 
 btEllipsoidClothColliderCore::~btEllipsoidClothColliderCore()
@@ -189,6 +273,8 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 	const double cpu0 = threadCpuSeconds();
 	m_substepDt = dt;
 	const btTransform& now = m_body->getWorldTransform();
+	m_teleported = !m_havePose && m_hadPose;
+	m_hadPose = true;
 	if (!m_havePose)
 	{
 		m_previousPose = now;
@@ -222,6 +308,11 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 		m_deltaInverse.setIdentity();
 	}
 	m_current.update(m_compound, m_currentPose);
+	btRigidBody* rigid = btRigidBody::upcast(m_body);
+	m_dynamicBody = m_config.m_applyReactionToBody && rigid && !rigid->isStaticOrKinematicObject() &&
+							rigid->getInvMass() > btScalar(0)
+						? rigid
+						: 0;
 	m_lastStats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
 	m_lastStats.m_collisionCpuSeconds += threadCpuSeconds() - cpu0;
 }
@@ -266,10 +357,15 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	if (ne == 0 || softBody->m_nodes.size() == 0)
 		return;
 	Substep substep(m_current, btMax(m_config.m_skinOffset, btScalar(0)), dt);
+	// Bullet's own soft-rigid contact uses kDF x the body's friction (btSoftBody's rigid contacts); Config overrides.
+	substep.m_friction = m_config.m_friction >= btScalar(0) ? m_config.m_friction
+															: softBody->m_cfg.kDF * m_body->getFriction();
 	m_candidates.resize(ne);
 	substep.m_candidates = &m_candidates[0];
 	m_candidateT.resize(ne);
 	substep.m_tvals = &m_candidateT[0];
+	m_contactCandidates.resize(ne);
+	substep.m_contactCandidates = &m_contactCandidates[0];
 	const bool moving = m_moving;
 	const btTransform delta = m_delta;
 
@@ -294,6 +390,8 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 		btScalar zeta;
 		if (collideNode(node, q, substep, zeta))
 			minZeta = btMin(minZeta, zeta);
+		if (m_teleported)
+			leavePocket(node, substep, minZeta);
 	}
 	stats.m_minZeta = minZeta;
 	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
@@ -322,7 +420,8 @@ BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoft
 		}
 		// 4. Union push-out.
 		++m_lastStats.m_nodesPushedOut;
-		zeta = pushNodeOut(node, x, q, substep.m_skin, substep.m_dt);
+		bool moved;
+		zeta = pushNodeOut(node, x, q, substep, moved);
 		return true;
 	}
 	if (entry.m_ellipsoid < 0)
@@ -336,38 +435,118 @@ BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoft
 	return true;
 }
 
-BT_ELLIPSOID_ALWAYS_INLINE btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry,
+void btEllipsoidClothColliderCore::leavePocket(btSoftBody::Node& node, const Substep& substep, btScalar& minZeta)
+{
+	const btVector3 lo = m_current.getAabbMin(), hi = m_current.getAabbMax();
+	const btVector3& x = node.m_x;
+	if (x.x() < lo.x() || x.y() < lo.y() || x.z() < lo.z() || x.x() > hi.x() || x.y() > hi.y() || x.z() > hi.z())
+		return;
+	btPushOutResult out;
+	m_pushOut.leaveEnclosedPocket(m_current, x, substep.m_skin, out);
+	if (!out.m_moved)
+		return;
+	++m_lastStats.m_nodesPushedOut;
+	++m_lastStats.m_pushOutEnclosed;
+	const btVector3 start = node.m_x;
+	node.m_x = out.m_point;
+	respondVelocity(node, out.m_normal, out.m_point - out.m_normal * substep.m_skin, start, out.m_center, substep,
+					btScalar(0));
+	minZeta = btMin(minZeta, out.m_zeta);
+}
+
+btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry,
 													  const btVector3& q, int nc, const Substep& substep)
 {
+	// A node that starts within the skin goes back to its own clearance, not out to the full skin: pushed out by
+	// the skin every time its cloth's tension drew it onto the surface, resting cloth never came to rest.
+	const btScalar skin = btMin(substep.m_skin, btClearance(m_current[entry.m_ellipsoid], q));
 	btEntryPlacement placed;
-	btPlaceAtEntry(m_current, entry, substep.m_candidates, substep.m_tvals, nc, q, node.m_x, substep.m_skin, placed);
-	btApplyVelocityRule(m_config, bodyVelocityAt(placed.m_surface, substep.m_dt), node, placed.m_surface,
-						placed.m_normal, q, placed.m_center);
-	node.m_x = placed.m_placed;
+	btPlaceAtEntry(m_current, entry, substep.m_candidates, substep.m_tvals, nc, q, node.m_x, skin, placed);
 	btVector3 point;
 	btScalar zeta;
-	if (btKeepOutsideCandidates(m_current, substep.m_candidates, nc, placed, substep.m_skin, point, zeta))
+	if (!btKeepOutsideCandidates(m_current, substep.m_candidates, nc, placed, skin, point, zeta))
 	{
-		node.m_x = point;
+		++m_lastStats.m_nodesRepaired;
+		bool moved;
+		zeta = pushNodeOut(node, point, q, substep, moved);
+		if (!moved)
+			respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, substep, btScalar(0));
 		return zeta;
 	}
-	++m_lastStats.m_nodesRepaired;
-	return pushNodeOut(node, point, q, substep.m_skin, substep.m_dt);
+	node.m_x = point;
+	if (respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, substep, btScalar(1) - entry.m_t))
+	{
+		// Held by static friction (or moving straight in): the node stays where it started the substep, outside
+		// every candidate (the path test found q outside). The entry point lies down the path, and a node placed
+		// there every substep crept downhill under any friction.
+		node.m_x = q;
+		zeta = btMinZetaPacked(m_current.getPackedRecords(), substep.m_candidates, nc, q, 0);
+	}
+	return zeta;
 }
 
 btScalar btEllipsoidClothColliderCore::pushNodeOut(btSoftBody::Node& node, const btVector3& from,
-												   const btVector3& start, btScalar skin, btScalar dt)
+												   const btVector3& start, const Substep& substep, bool& moved)
 {
 	btPushOutResult out;
-	m_pushOut.pushOut(m_current, from, skin, out);
+	m_pushOut.pushOut(m_current, from, substep.m_skin, out);
+	moved = out.m_moved;
 	if (!out.m_moved)
+	{
+		node.m_x = from;
 		return out.m_zeta;
+	}
 	m_lastStats.m_pushOutEnclosed += out.m_enclosed ? 1 : 0;
 	m_lastStats.m_pushOutFallbacks += out.m_fallback ? 1 : 0;
-	const btVector3 surface = out.m_point - out.m_normal * skin;
-	btApplyVelocityRule(m_config, bodyVelocityAt(surface, dt), node, surface, out.m_normal, start, out.m_center);
 	node.m_x = out.m_point;
+	respondVelocity(node, out.m_normal, out.m_point - out.m_normal * substep.m_skin, start, out.m_center, substep,
+					btScalar(0));
 	return out.m_zeta;
+}
+
+bool btEllipsoidClothColliderCore::respondVelocity(btSoftBody::Node& node, const btVector3& normal,
+												   const btVector3& surface, const btVector3& start,
+												   const btVector3& center, const Substep& substep, btScalar remaining)
+{
+	// Every surface the node now touches, so no velocity into a second ellipsoid of a crease survives.
+	btNodeContacts contacts;
+	contacts.add(normal);
+	const int nt = substep.m_contactQuery.candidates(node.m_x, node.m_x, substep.m_contactCandidates);
+	btAddTouchingNormals(m_current, substep.m_contactCandidates, nt, node.m_x, substep.m_band, contacts);
+	const btVector3 bodyVelocity = bodyVelocityAt(surface, substep.m_dt);
+	const btVector3 before = node.m_v;
+	const btVector3 relative = node.m_v - bodyVelocity;
+	btVector3 vr = btRelativeVelocityAfterContact(m_config.m_velocityRule, substep.m_friction, relative, contacts,
+												  surface, start, center);
+	const bool stopped = relative.length2() > btScalar(0) && vr.length2() == btScalar(0);
+	if (remaining > btScalar(0) && !stopped)
+		slideAlong(node, vr * (remaining * substep.m_dt), substep);
+	if (substep.m_dt > btScalar(0))
+		vr = btCapBySurfaceMotion(vr, normal, (node.m_x - start) / substep.m_dt);
+	node.m_v = bodyVelocity + vr;
+	if (m_dynamicBody)
+	{
+		// Two-way coupling: the body takes the opposite of the node's momentum change, at the contact.
+		m_dynamicBody->applyImpulse((before - node.m_v) / node.m_im, surface - m_dynamicBody->getCenterOfMassPosition());
+		m_dynamicBody->activate();
+	}
+	return stopped;
+}
+
+void btEllipsoidClothColliderCore::slideAlong(btSoftBody::Node& node, const btVector3& displacement,
+											  const Substep& substep)
+{
+	// The node met the surface after part of the substep; for the rest it moves with its new velocity, which has no
+	// component into the surfaces it touches. Taken only if that short path enters no ellipsoid (else the node
+	// stays at the entry, blocked, e.g. in a crease).
+	const btVector3 from = node.m_x;
+	const btVector3 to = from + displacement;
+	const int nc = substep.m_query.candidates(from, to, substep.m_contactCandidates);
+	btPathEntry entry;
+	btEarliestEntry(m_current.getPackedRecords(), substep.m_contactCandidates, nc, btPathEnds(from, to), substep.m_tvals,
+					entry);
+	if (!entry.m_startInside && entry.m_ellipsoid < 0 && entry.m_minZetaEnd >= btScalar(1))
+		node.m_x = to;
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -392,6 +571,18 @@ btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::getCollider(int i) con
 namespace
 {
 
+/// True for a plain btCompoundShape with at least one child, every child a btEllipsoidShape.
+bool isCompoundOfEllipsoids(const btCollisionShape* shape)
+{
+	const btCompoundShape* compound = dynamic_cast<const btCompoundShape*>(shape);
+	if (!compound || compound->getNumChildShapes() == 0)
+		return false;
+	for (int i = 0; i < compound->getNumChildShapes(); ++i)
+		if (!dynamic_cast<const btEllipsoidShape*>(compound->getChildShape(i)))
+			return false;
+	return true;
+}
+
 /// The body's shape as an ellipsoid compound: the shape itself, or a new compound wrapping a bare btEllipsoidShape
 /// (returned in *owned too, for the collider to delete). 0 with *reason set when the shape is neither or unusable.
 btEllipsoidCompoundShape* ellipsoidCompoundOf(btCollisionShape* shape, btEllipsoidCompoundShape** owned,
@@ -404,8 +595,11 @@ btEllipsoidCompoundShape* ellipsoidCompoundOf(btCollisionShape* shape, btEllipso
 		btEllipsoidShape* single = dynamic_cast<btEllipsoidShape*>(shape);
 		if (!single)
 		{
-			*reason = "btEllipsoidClothSoftBodySolver::installCollider: the body's shape is neither a "
-					  "btEllipsoidCompoundShape nor a btEllipsoidShape";
+			*reason = isCompoundOfEllipsoids(shape)
+						  ? "btEllipsoidClothSoftBodySolver::installCollider: the body's shape is a plain btCompoundShape "
+							"of btEllipsoidShape children; build a btEllipsoidCompoundShape with addEllipsoid instead"
+						  : "btEllipsoidClothSoftBodySolver::installCollider: the body's shape is neither a "
+							"btEllipsoidCompoundShape nor a btEllipsoidShape";
 			return 0;
 		}
 		void* mem = btAlignedAlloc(sizeof(btEllipsoidCompoundShape), 16);
@@ -413,12 +607,16 @@ btEllipsoidCompoundShape* ellipsoidCompoundOf(btCollisionShape* shape, btEllipso
 		(*owned)->addEllipsoid(btVector3(0, 0, 0), btMatrix3x3::getIdentity(), single->getScaledSemiAxes());
 		return *owned;
 	}
-	if (compound->getNumEllipsoids() == 0 || compound->getNumChildShapes() != compound->getNumEllipsoids())
+	if (compound->getNumChildShapes() != compound->getNumEllipsoids())
 	{
-		*reason = compound->getNumEllipsoids() == 0
-					  ? "btEllipsoidClothSoftBodySolver::installCollider: the compound has no ellipsoids"
-					  : "btEllipsoidClothSoftBodySolver::installCollider: the compound has children that are not "
-						"ellipsoids (added with addChildShape instead of addEllipsoid)";
+		*reason = "btEllipsoidClothSoftBodySolver::installCollider: the btEllipsoidCompoundShape has children added "
+				  "with addChildShape, which the collider does not see; add ellipsoids with addEllipsoid";
+		return 0;
+	}
+	if (compound->getNumEllipsoids() == 0)
+	{
+		*reason = "btEllipsoidClothSoftBodySolver::installCollider: the compound has no ellipsoids (add them with "
+				  "addEllipsoid)";
 		return 0;
 	}
 	return compound;
@@ -436,7 +634,7 @@ btFloatRangeStatus checkPrecision(const btCollisionObject* body, const btEllipso
 
 } // namespace
 
-btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btSoftRigidDynamicsWorld* world,
+btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btDynamicsWorld* dynamicsWorld,
 																		  btCollisionObject* body,
 																		  const btEllipsoidClothCollider::Config& config,
 																		  const char** whyNot)
@@ -444,11 +642,22 @@ btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btSoft
 	const char* dummy = 0;
 	const char** reason = whyNot ? whyNot : &dummy;
 	*reason = 0;
-	if (!world)
+	if (!dynamicsWorld)
 	{
 		*reason = "btEllipsoidClothSoftBodySolver::installCollider: world is null";
 		return 0;
 	}
+	// The virtual world type, not the static type of the pointer: Bullet's examples C-cast worlds, and a
+	// btDeformableMultiBodyDynamicsWorld cast to btSoftRigidDynamicsWorld* is not one.
+	if (dynamicsWorld->getWorldType() != BT_SOFT_RIGID_DYNAMICS_WORLD)
+	{
+		*reason = dynamicsWorld->getWorldType() == BT_DEFORMABLE_MULTIBODY_DYNAMICS_WORLD
+					  ? "btEllipsoidClothSoftBodySolver::installCollider: btDeformableMultiBodyDynamicsWorld is not "
+						"supported (its btDeformableBodySolver has no post-solve hook); use btSoftRigidDynamicsWorld"
+					  : "btEllipsoidClothSoftBodySolver::installCollider: the world is not a btSoftRigidDynamicsWorld";
+		return 0;
+	}
+	btSoftRigidDynamicsWorld* world = static_cast<btSoftRigidDynamicsWorld*>(dynamicsWorld);
 	if (!body || !body->getCollisionShape())
 	{
 		*reason = "btEllipsoidClothSoftBodySolver::installCollider: body is null or has no collision shape";
@@ -464,14 +673,14 @@ btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btSoft
 		return 0;
 	}
 	for (int i = 0; i < m_colliders.size(); ++i)
-		if (m_colliders[i]->getBody() == body)
+		if (!m_colliders[i]->isDetached() && m_colliders[i]->getBody() == body)
 		{
 			*reason = "btEllipsoidClothSoftBodySolver::installCollider: a collider is already installed for this body";
 			return 0;
 		}
 	// Far from the origin a float build cannot resolve the skin offset (btFloatRange.h): refuse, or warn.
 	const char* precision = 0;
-	if (checkPrecision(body, config, &precision) == BT_FLOAT_RANGE_REFUSE)
+	if (config.m_skinOffset == config.m_skinOffset && checkPrecision(body, config, &precision) == BT_FLOAT_RANGE_REFUSE)
 	{
 		*reason = precision;
 		return 0;
@@ -480,6 +689,15 @@ btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btSoft
 	const btEllipsoidCompoundShape* compound = ellipsoidCompoundOf(body->getCollisionShape(), &owned, reason);
 	if (!compound)
 		return 0;
+	if (!btEllipsoidClothCollider::validateConfig(config, reason, 0, largestSemiAxis(*compound)))
+	{
+		if (owned)
+		{
+			owned->~btEllipsoidCompoundShape();
+			btAlignedFree(owned);
+		}
+		return 0;
+	}
 	btEllipsoidClothColliderCore* collider = new btEllipsoidClothColliderCore(world, body, compound, owned, config);
 	collider->setPrecisionWarning(precision);
 	m_colliders.push_back(collider);
@@ -505,6 +723,12 @@ bool btEllipsoidClothSoftBodySolver::uninstallCollider(btEllipsoidClothCollider*
 void btEllipsoidClothSoftBodySolver::predictMotion(btScalar solverdt)
 {
 	btDefaultSoftBodySolver::predictMotion(solverdt);
+	// Before this substep's collision detection (which follows predictMotion): a soft body added since the last
+	// substep gets no Bullet response to an installed body even in its first step.
+	for (int c = 0; c < m_colliders.size(); ++c)
+		if (m_colliders[c]->bodyStillPresent())
+			for (int b = 0; b < m_softBodySet.size(); ++b)
+				m_colliders[c]->ensureResponseDisabled(m_softBodySet[b]);
 	// With drift iterations (diterations > 0) btSoftBody::solveConstraints overwrites m_q mid-solve, so the start
 	// of the substep is saved here (predictMotion has just set q = x_start).
 	m_startPositions.resize(m_softBodySet.size());
@@ -531,6 +755,8 @@ void btEllipsoidClothSoftBodySolver::solveConstraints(btScalar solverdt)
 	for (int c = 0; c < m_colliders.size(); ++c)
 	{
 		btEllipsoidClothColliderCore* collider = m_colliders[c];
+		if (!collider->bodyStillPresent())
+			continue;
 		collider->beginSubstep(solverdt);
 		for (int b = 0; b < m_softBodySet.size(); ++b)
 		{

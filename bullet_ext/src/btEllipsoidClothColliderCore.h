@@ -13,15 +13,17 @@ public header shows only btEllipsoidClothCollider. Tests that craft node paths b
 #include "src/btEllipsoidNarrowPhase.h"
 #include "src/btEllipsoidUnionPushOut.h"
 
+class btRigidBody;
+
 class btEllipsoidClothColliderCore : public btEllipsoidClothCollider
 {
 public:
 	BT_DECLARE_ALIGNED_ALLOCATOR();
 
 	/// \param ownedCompound a compound made for a bare btEllipsoidShape body (deleted with the collider), or 0
-	btEllipsoidClothColliderCore(btSoftRigidDynamicsWorld *world, btCollisionObject *body,
-								 const btEllipsoidCompoundShape *compound, btEllipsoidCompoundShape *ownedCompound,
-								 const Config &config);
+	btEllipsoidClothColliderCore(btSoftRigidDynamicsWorld* world, btCollisionObject* body,
+								 const btEllipsoidCompoundShape* compound, btEllipsoidCompoundShape* ownedCompound,
+								 const Config& config);
 	virtual ~btEllipsoidClothColliderCore();
 
 	/// Once per substep before collide(): moves the body pose forward (see the class notes of the public header)
@@ -29,56 +31,94 @@ public:
 	void beginSubstep(btScalar dt);
 	/// Runs the four phases on every movable node of one soft body for one substep of length dt.
 	/// \param startPositions node positions at the start of the substep, or 0 to use m_q.
-	void collide(btSoftBody *softBody, btScalar dt, const btVector3 *startPositions);
+	void collide(btSoftBody* softBody, btScalar dt, const btVector3* startPositions);
 	/// Adds the substep's counters to the accumulated ones.
 	void endSubstep();
 
+	/// False once the body has left the world it was in at install (then the collider is detached: isDetached()).
+	/// Compares pointers only: a body deleted after its removal is never read.
+	bool bodyStillPresent();
+
 	/// Adds the body to the soft body's m_collisionDisabledObjects (if Config says so).
-	void ensureResponseDisabled(btSoftBody *softBody);
+	void ensureResponseDisabled(btSoftBody* softBody);
 	/// Removes the body from every soft body's m_collisionDisabledObjects of the world (uninstall).
 	void restoreResponse();
 	/// Set by the solver at installation (getPrecisionWarning).
 	void setPrecisionWarning(const char* warning) { m_precisionWarning = warning; }
+
+	/// A placed node touches an ellipsoid whose surface is this close (metres): the skin plus half of it (placement
+	/// in a crease and the first-order distance estimate stay within that) plus 0.5 mm.
+	static btScalar contactBand(btScalar skin) { return btScalar(1.5) * skin + btScalar(0.0005); }
 
 private:
 	/// Everything one collide() call shares between its nodes.
 	struct Substep
 	{
 		btEllipsoidWorldCache::PathQuery m_query;
+		btEllipsoidWorldCache::PathQuery m_contactQuery; ///< the ellipsoids within the contact band of a point
 		btScalar m_skin;
+		btScalar m_band;     ///< contactBand(m_skin)
+		btScalar m_friction; ///< Coulomb coefficient for this soft body (Config's, or kDF x body friction)
 		btScalar m_dt;
-		int *m_candidates;
-		btScalar *m_tvals;
-		Substep(const btEllipsoidWorldCache &cache, btScalar skin, btScalar dt)
-			: m_query(cache, skin), m_skin(skin), m_dt(dt), m_candidates(0), m_tvals(0)
+		int* m_candidates;
+		btScalar* m_tvals;
+		int* m_contactCandidates;
+		Substep(const btEllipsoidWorldCache& cache, btScalar skin, btScalar dt)
+			: m_query(cache, skin),
+			  m_contactQuery(cache, contactBand(skin)),
+			  m_skin(skin),
+			  m_band(contactBand(skin)),
+			  m_friction(0),
+			  m_dt(dt),
+			  m_candidates(0),
+			  m_tvals(0),
+			  m_contactCandidates(0)
 		{
 		}
 	};
 
-	btEllipsoidCompoundShape *m_ownedCompound;
-	const btEllipsoidCompoundShape *m_compound;
-	btTransform m_previousPose;			  ///< body pose used in the previous substep
-	btTransform m_currentPose;			  ///< body pose for this substep
+	btEllipsoidCompoundShape* m_ownedCompound;
+	bool m_bodyInWorld;  ///< the body was in the world's collision object array at install
+	int m_worldIndex;    ///< where it was last seen there
+	const btEllipsoidCompoundShape* m_compound;
+	btTransform m_previousPose;           ///< body pose used in the previous substep
+	btTransform m_currentPose;            ///< body pose for this substep
 	btTransform m_lastSeenWorldTransform; ///< kinematic bodies: world transform seen at the last step start
-	btTransform m_delta;				  ///< previous pose -> current pose (world to world)
+	btTransform m_delta;                  ///< previous pose -> current pose (world to world)
 	btTransform m_deltaInverse;
-	btTransform m_stepStart;  ///< kinematic interpolation: pose at the start of the current step
-	btTransform m_stepTarget; ///< kinematic interpolation: pose at its end
+	btTransform m_stepStart;              ///< kinematic interpolation: pose at the start of the current step
+	btTransform m_stepTarget;             ///< kinematic interpolation: pose at its end
 	bool m_moving;
+	bool m_hadPose;    ///< some substep has run (a later resetBodyPose() is a teleport)
+	bool m_teleported; ///< this substep follows resetBodyPose(): nodes left in pockets of the union are moved out
+	btRigidBody* m_dynamicBody; ///< the body when it takes the reaction impulses this substep (else 0)
 	int m_substepIndex;
 	int m_substepCount;
 	btScalar m_substepDt;
 	btAlignedObjectArray<int> m_candidates;
 	btAlignedObjectArray<btScalar> m_candidateT;
+	btAlignedObjectArray<int> m_contactCandidates;
 	btEllipsoidUnionPushOut m_pushOut;
 
 	btTransform interpolatedKinematicPose();
-	btVector3 bodyVelocityAt(const btVector3 &worldPoint, btScalar dt) const;
-	bool collideNode(btSoftBody::Node &node, const btVector3 &q, const Substep &substep, btScalar &zeta);
-	btScalar respondAtEntry(btSoftBody::Node &node, const btPathEntry &entry, const btVector3 &q, int nc,
-							const Substep &substep);
-	btScalar pushNodeOut(btSoftBody::Node &node, const btVector3 &from, const btVector3 &start, btScalar skin,
-						 btScalar dt);
+	btVector3 bodyVelocityAt(const btVector3& worldPoint, btScalar dt) const;
+	bool collideNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep, btScalar& zeta);
+	/// After a teleport: a node outside every ellipsoid but in a pocket the union encloses leaves it.
+	void leavePocket(btSoftBody::Node& node, const Substep& substep, btScalar& minZeta);
+	btScalar respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry, const btVector3& q, int nc,
+							const Substep& substep);
+	/// Union push-out from `from`, then the velocity rule at the exit; moved = false if `from` was outside already
+	/// (the node is left at `from`, its velocity unchanged).
+	btScalar pushNodeOut(btSoftBody::Node& node, const btVector3& from, const btVector3& start, const Substep& substep,
+						 bool& moved);
+	/// The velocity rule at the node's final position (every touched surface), the slide for the `remaining`
+	/// fraction of the substep after it met the surface, the cap by its real motion, and the reaction on a dynamic body.
+	/// \return true if the contact stopped a moving node (zero relative velocity after it: held by static friction,
+	/// or moving straight in); the caller then keeps the node at its start.
+	bool respondVelocity(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface,
+						 const btVector3& start, const btVector3& center, const Substep& substep, btScalar remaining);
+	/// Moves the node by `displacement` if that path enters no ellipsoid.
+	void slideAlong(btSoftBody::Node& node, const btVector3& displacement, const Substep& substep);
 };
 
 #endif // BT_ELLIPSOID_CLOTH_COLLIDER_CORE_H

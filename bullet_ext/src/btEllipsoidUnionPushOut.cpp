@@ -13,27 +13,27 @@ namespace
 /// margin doubles from 2 ulps of the coordinates, so 2^40 ulps is far past any union).
 const int kMaxRealiseSteps = 40;
 
-inline bool containsPoint(const btEllipsoidWorldCache::Entry &e, const btVector3 &p)
+inline bool containsPoint(const btEllipsoidWorldCache::Entry& e, const btVector3& p)
 {
 	return !(p.x() > e.m_aabbMax.x() || p.x() < e.m_aabbMin.x() || p.y() > e.m_aabbMax.y() || p.y() < e.m_aabbMin.y() ||
 			 p.z() > e.m_aabbMax.z() || p.z() < e.m_aabbMin.z());
 }
 
 /// Largest absolute coordinate of p plus 1 mm: the scale of the rounding tolerances along a ray from p.
-inline btScalar coordinateScale(const btVector3 &p)
+inline btScalar coordinateScale(const btVector3& p)
 {
 	return p.absolute()[p.absolute().maxAxis()] + btScalar(1e-3);
 }
 
 } // namespace
 
-btScalar btEllipsoidUnionPushOut::minZetaAll(const btEllipsoidWorldCache &cache, const btVector3 &p, int *which)
+btScalar btEllipsoidUnionPushOut::minZetaAll(const btEllipsoidWorldCache& cache, const btVector3& p, int* which)
 {
 	btScalar best = SIMD_INFINITY;
 	int bestIndex = -1;
 	for (int k = 0; k < cache.size(); ++k)
 	{
-		const btEllipsoidWorldCache::Entry &e = cache[k];
+		const btEllipsoidWorldCache::Entry& e = cache[k];
 		if (!containsPoint(e, p))
 			continue;
 		const btScalar z = (e.m_whiten * (p - e.m_center)).length2();
@@ -48,8 +48,8 @@ btScalar btEllipsoidUnionPushOut::minZetaAll(const btEllipsoidWorldCache &cache,
 	return best;
 }
 
-void btEllipsoidUnionPushOut::pushOut(const btEllipsoidWorldCache &cache, const btVector3 &from, btScalar skin,
-									  btPushOutResult &out)
+void btEllipsoidUnionPushOut::pushOut(const btEllipsoidWorldCache& cache, const btVector3& from, btScalar skin,
+									  btPushOutResult& out)
 {
 	m_cache = &cache;
 	out.m_enclosed = false;
@@ -78,46 +78,77 @@ void btEllipsoidUnionPushOut::pushOut(const btEllipsoidWorldCache &cache, const 
 		bestDir = shortestLastChordExit(from, dirs, ndirs, skin, point, bestExit);
 		out.m_enclosed = bestDir >= 0;
 	}
-	btVector3 normal;
 	if (bestDir >= 0)
 	{
-		out.m_zeta = minZetaAll(cache, point, 0);
-		normal = dirs[bestDir];
-		if (bestExit >= 0)
-		{
-			const btEllipsoidWorldCache::Entry &e = cache[bestExit];
-			const btVector3 g = btWhitenedNormal(e.m_whiten, e.m_whiten * (point - e.m_center));
-			const btScalar gl = g.length();
-			if (gl > SIMD_EPSILON)
-				normal = g / gl;
-		}
+		finishExit(point, dirs[bestDir], bestExit, from, out);
+		return;
 	}
-	else
-	{
-		int d0 = 0;
-		for (int d = 1; d < ndirs; ++d)
-			if (nominal[d] < nominal[d0])
-				d0 = d;
-		leaveUnionBox(from, dirs[d0], skin, point);
-		out.m_zeta = minZetaAll(cache, point, 0);
-		normal = dirs[d0];
-		out.m_fallback = true;
-	}
-	out.m_point = point;
-	out.m_normal = normal;
-	out.m_center = bestExit >= 0 ? cache[bestExit].m_center : from;
+	int d0 = 0;
+	for (int d = 1; d < ndirs; ++d)
+		if (nominal[d] < nominal[d0])
+			d0 = d;
+	leaveUnionBox(from, dirs[d0], skin, point);
+	out.m_fallback = true;
+	finishExit(point, dirs[d0], -1, from, out);
 }
 
-int btEllipsoidUnionPushOut::candidateDirections(const btVector3 &from, btVector3 *dirs) const
+btVector3 btEllipsoidUnionPushOut::latticeDirection(int d)
+{
+	const int i = d < 13 ? d : d + 1; // lattice index 0..26 without the centre (13)
+	return btVector3(btScalar(i % 3 - 1), btScalar((i / 3) % 3 - 1), btScalar(i / 9 - 1)).normalized();
+}
+
+void btEllipsoidUnionPushOut::finishExit(const btVector3& point, const btVector3& dir, int exitEllipsoid,
+										 const btVector3& from, btPushOutResult& out) const
+{
+	out.m_point = point;
+	out.m_zeta = minZetaAll(*m_cache, point, 0);
+	out.m_normal = dir;
+	out.m_center = exitEllipsoid >= 0 ? (*m_cache)[exitEllipsoid].m_center : from;
+	if (exitEllipsoid >= 0)
+	{
+		const btEllipsoidWorldCache::Entry& e = (*m_cache)[exitEllipsoid];
+		const btVector3 g = btWhitenedNormal(e.m_whiten, e.m_whiten * (point - e.m_center));
+		const btScalar gl = g.length();
+		if (gl > SIMD_EPSILON)
+			out.m_normal = g / gl;
+	}
+}
+
+void btEllipsoidUnionPushOut::leaveEnclosedPocket(const btEllipsoidWorldCache& cache, const btVector3& from,
+												  btScalar skin, btPushOutResult& out)
+{
+	m_cache = &cache;
+	out.m_moved = false;
+	out.m_enclosed = false;
+	out.m_fallback = false;
+	out.m_point = from;
+	out.m_zeta = minZetaAll(cache, from, 0);
+	if (escapesUnion(from, latticeDirection(0)))
+		return;
+	btVector3 dirs[26];
+	for (int d = 0; d < 26; ++d)
+		dirs[d] = latticeDirection(d);
+	btVector3 point;
+	int exit = -1;
+	const int best = shortestLastChordExit(from, dirs, 26, skin, point, exit);
+	if (best < 0)
+		return;
+	out.m_moved = true;
+	out.m_enclosed = true;
+	finishExit(point, dirs[best], exit, from, out);
+}
+
+int btEllipsoidUnionPushOut::candidateDirections(const btVector3& from, btVector3* dirs) const
 {
 	// For each ellipsoid containing the point: its outward normal there (the direction to its nearest surface point
 	// for shallow penetrations) and both directions of its three principal axes (the way out of a thin ellipsoid near
 	// its mid-plane). The exit of the whole union is measured along each; the shortest wins.
-	const btEllipsoidWorldCache &cache = *m_cache;
+	const btEllipsoidWorldCache& cache = *m_cache;
 	int ndirs = 0;
 	for (int k = 0; k < cache.size() && ndirs + 7 <= kMaxDirections; ++k)
 	{
-		const btEllipsoidWorldCache::Entry &e = cache[k];
+		const btEllipsoidWorldCache::Entry& e = cache[k];
 		if (!containsPoint(e, from))
 			continue;
 		const btVector3 u = e.m_whiten * (from - e.m_center);
@@ -139,8 +170,8 @@ int btEllipsoidUnionPushOut::candidateDirections(const btVector3 &from, btVector
 	return ndirs;
 }
 
-int btEllipsoidUnionPushOut::bestEscapingExit(const btVector3 &from, const btVector3 *dirs, const btScalar *nominal,
-											  int ndirs, btScalar skin, btVector3 &out, int &bestExit)
+int btEllipsoidUnionPushOut::bestEscapingExit(const btVector3& from, const btVector3* dirs, const btScalar* nominal,
+											  int ndirs, btScalar skin, btVector3& out, int& bestExit)
 {
 	// A realised exit is never shorter than the nominal one, so directions are tried in nominal order until the next
 	// nominal exit is longer than the best realised one. An exit into a pocket enclosed by the union is not an exit:
@@ -174,8 +205,8 @@ int btEllipsoidUnionPushOut::bestEscapingExit(const btVector3 &from, const btVec
 	return bestDir;
 }
 
-int btEllipsoidUnionPushOut::shortestLastChordExit(const btVector3 &from, const btVector3 *dirs, int ndirs,
-												   btScalar skin, btVector3 &out, int &bestExit)
+int btEllipsoidUnionPushOut::shortestLastChordExit(const btVector3& from, const btVector3* dirs, int ndirs,
+												   btScalar skin, btVector3& out, int& bestExit)
 {
 	// Every nearest exit led into a pocket (or was not realised): leave along each ray past its last chord, which no
 	// pocket can contain, and keep the shortest.
@@ -197,8 +228,8 @@ int btEllipsoidUnionPushOut::shortestLastChordExit(const btVector3 &from, const 
 	return bestDir;
 }
 
-void btEllipsoidUnionPushOut::leaveUnionBox(const btVector3 &from, const btVector3 &dir, btScalar skin,
-											btVector3 &out) const
+void btEllipsoidUnionPushOut::leaveUnionBox(const btVector3& from, const btVector3& dir, btScalar skin,
+											btVector3& out) const
 {
 	// Safe fallback (no direction realised an exit): leave the box of the whole union along dir, grown by the skin
 	// and a margin of 1e-5 of its size plus 8 ulps of the coordinates. A point outside an ellipsoid's box is outside
@@ -219,16 +250,16 @@ void btEllipsoidUnionPushOut::leaveUnionBox(const btVector3 &from, const btVecto
 	out = from + dir * btMax(sBox, btScalar(0));
 }
 
-void btEllipsoidUnionPushOut::collectRayIntervals(const btVector3 &origin, const btVector3 &dir, btScalar skin)
+void btEllipsoidUnionPushOut::collectRayIntervals(const btVector3& origin, const btVector3& dir, btScalar skin)
 {
 	// Every ellipsoid's chord along the ray, widened by the skin on both sides, sorted by start. The quadratic is set
 	// up relative to each ellipsoid's centre (origin - c is exact or nearly so for nearby points, also 1 km out).
-	const btEllipsoidWorldCache &cache = *m_cache;
+	const btEllipsoidWorldCache& cache = *m_cache;
 	m_intervals.resize(0);
 	m_intervalOwner.resize(0);
 	for (int k = 0; k < cache.size(); ++k)
 	{
-		const btEllipsoidWorldCache::Entry &e = cache[k];
+		const btEllipsoidWorldCache::Entry& e = cache[k];
 		const btUnitBallQuadratic quadratic =
 			btUnitBallQuadratic::ofLine(e.m_whiten * (origin - e.m_center), e.m_whiten * dir);
 		if (!(quadratic.m_a > btScalar(0)))
@@ -264,7 +295,7 @@ void btEllipsoidUnionPushOut::collectRayIntervals(const btVector3 &origin, const
 	}
 }
 
-btScalar btEllipsoidUnionPushOut::firstUncovered(btScalar from, btScalar scale, int *exitEllipsoid) const
+btScalar btEllipsoidUnionPushOut::firstUncovered(btScalar from, btScalar scale, int* exitEllipsoid) const
 {
 	// Sweep over the sorted intervals: the first parameter s >= from that no interval covers. Intervals that start
 	// within a few ulps of the current s count as overlapping: two ellipsoids that touch share a boundary point, and
@@ -287,15 +318,15 @@ btScalar btEllipsoidUnionPushOut::firstUncovered(btScalar from, btScalar scale, 
 	return s;
 }
 
-btScalar btEllipsoidUnionPushOut::unionExitAlongRay(const btVector3 &origin, const btVector3 &dir, btScalar skin,
-													int *exitEllipsoid)
+btScalar btEllipsoidUnionPushOut::unionExitAlongRay(const btVector3& origin, const btVector3& dir, btScalar skin,
+													int* exitEllipsoid)
 {
 	collectRayIntervals(origin, dir, skin);
 	return firstUncovered(btScalar(0), coordinateScale(origin), exitEllipsoid);
 }
 
-btScalar btEllipsoidUnionPushOut::realiseExit(const btVector3 &origin, const btVector3 &dir, btScalar skin,
-											  btVector3 &out, int *exitEllipsoid, bool lastExit)
+btScalar btEllipsoidUnionPushOut::realiseExit(const btVector3& origin, const btVector3& dir, btScalar skin,
+											  btVector3& out, int* exitEllipsoid, bool lastExit)
 {
 	// The exact union exit s along the ray is a real number; the node needs a btScalar point. Rounding
 	// origin + dir * s to the coordinate grid (6e-5 m at 1 km in float) can land a hair inside the ellipsoid the ray
@@ -349,26 +380,25 @@ btScalar btEllipsoidUnionPushOut::realiseExit(const btVector3 &origin, const btV
 	return z >= btScalar(1) ? s : SIMD_INFINITY;
 }
 
-bool btEllipsoidUnionPushOut::escapesUnion(const btVector3 &p, const btVector3 &preferred) const
+bool btEllipsoidUnionPushOut::escapesUnion(const btVector3& p, const btVector3& preferred) const
 {
 	// A point outside every ellipsoid can still sit in a pocket that the union encloses (fitted bodies have them
 	// under the skin, where neighbouring ellipsoids meet near the surface but not deeper in). Such a point is not
 	// reachable from outside. It is certainly not in a pocket if some ray from it misses the union: try the
 	// preferred direction, then the 26 directions of the 3x3x3 lattice. A ray is blocked when the far root of an
 	// ellipsoid's quadratic lies ahead; the quadratic is set up relative to each centre.
-	const btEllipsoidWorldCache &cache = *m_cache;
+	const btEllipsoidWorldCache& cache = *m_cache;
 	for (int d = -1; d < 26; ++d)
 	{
 		btVector3 dir = preferred;
 		if (d >= 0)
 		{
-			const int i = d < 13 ? d : d + 1; // lattice index 0..26 without the centre (13)
-			dir = btVector3(btScalar(i % 3 - 1), btScalar((i / 3) % 3 - 1), btScalar(i / 9 - 1)).normalized();
+			dir = latticeDirection(d);
 		}
 		bool blocked = false;
 		for (int k = 0; k < cache.size() && !blocked; ++k)
 		{
-			const btEllipsoidWorldCache::Entry &e = cache[k];
+			const btEllipsoidWorldCache::Entry& e = cache[k];
 			const btUnitBallQuadratic quadratic =
 				btUnitBallQuadratic::ofLine(e.m_whiten * (p - e.m_center), e.m_whiten * dir);
 			const btScalar disc = quadratic.discriminant();

@@ -16,13 +16,13 @@ exit is connected to the outside. See btEllipsoidUnionPushOut.cpp.
 /// Where a push-out leaves the union.
 struct btPushOutResult
 {
-	bool m_moved;		///< false: the point was inside no ellipsoid (caller's tolerance), nothing to do
-	btVector3 m_point;	///< the node's new position (outside every ellipsoid, the skin included)
+	bool m_moved;       ///< false: the point was inside no ellipsoid (caller's tolerance), nothing to do
+	btVector3 m_point;  ///< the node's new position (outside every ellipsoid, the skin included)
 	btVector3 m_normal; ///< outward normal at the exit
 	btVector3 m_center; ///< centre of the ellipsoid the node left (the start point when unknown), for eq. 10
-	btScalar m_zeta;	///< smallest zeta at the final point over the ellipsoids whose box holds it
-	bool m_enclosed;	///< every nearest exit led into a pocket enclosed by the union: left past the last chord
-	bool m_fallback;	///< no ray realised an exit: left the union's box (not seen in 1e7 random cases)
+	btScalar m_zeta;    ///< smallest zeta at the final point over the ellipsoids whose box holds it
+	bool m_enclosed;    ///< every nearest exit led into a pocket enclosed by the union: left past the last chord
+	bool m_fallback;    ///< no ray realised an exit: left the union's box (not seen in 1e7 random cases)
 };
 
 /// The push-out, with its scratch arrays (one per collider, reused across nodes).
@@ -30,11 +30,18 @@ class btEllipsoidUnionPushOut
 {
 public:
 	/// Pushes the point `from` out of the union of the cache's ellipsoids, `skin` (>= 0) beyond its surface.
-	void pushOut(const btEllipsoidWorldCache &cache, const btVector3 &from, btScalar skin, btPushOutResult &out);
+	void pushOut(const btEllipsoidWorldCache& cache, const btVector3& from, btScalar skin, btPushOutResult& out);
+
+	/// A point outside every ellipsoid may still sit in a pocket the union encloses (a gap under the skin of a fitted
+	/// body, where the cloth can land when the body is teleported). If no ray of the escape test leaves the union
+	/// from `from`, the point leaves along the shortest of the 26 lattice directions past the last chord (m_moved and
+	/// m_enclosed set); otherwise nothing moves (m_moved false).
+	void leaveEnclosedPocket(const btEllipsoidWorldCache& cache, const btVector3& from, btScalar skin,
+							 btPushOutResult& out);
 
 	/// Smallest zeta at p over every ellipsoid whose world box holds p (SIMD_INFINITY if none: then p is outside all);
 	/// \param which receives its index or -1.
-	static btScalar minZetaAll(const btEllipsoidWorldCache &cache, const btVector3 &p, int *which);
+	static btScalar minZetaAll(const btEllipsoidWorldCache& cache, const btVector3& p, int* which);
 
 private:
 	/// Largest number of exit-direction candidates (7 per containing ellipsoid: the normal and both directions of
@@ -44,23 +51,26 @@ private:
 		kMaxDirections = 56
 	};
 
-	const btEllipsoidWorldCache *m_cache;
+	const btEllipsoidWorldCache* m_cache;
 	btAlignedObjectArray<btScalar> m_intervals; ///< chord of ellipsoid m_intervalOwner[i] along the current ray:
 												///< [2i] start, [2i + 1] end (widened by the skin), sorted by start
 	btAlignedObjectArray<int> m_intervalOwner;
 
-	int candidateDirections(const btVector3 &from, btVector3 *dirs) const;
-	int bestEscapingExit(const btVector3 &from, const btVector3 *dirs, const btScalar *nominal, int ndirs,
-						 btScalar skin, btVector3 &out, int &bestExit);
-	int shortestLastChordExit(const btVector3 &from, const btVector3 *dirs, int ndirs, btScalar skin, btVector3 &out,
-							  int &bestExit);
-	void leaveUnionBox(const btVector3 &from, const btVector3 &dir, btScalar skin, btVector3 &out) const;
-	void collectRayIntervals(const btVector3 &origin, const btVector3 &dir, btScalar skin);
-	btScalar firstUncovered(btScalar from, btScalar scale, int *exitEllipsoid) const;
-	btScalar unionExitAlongRay(const btVector3 &origin, const btVector3 &dir, btScalar skin, int *exitEllipsoid);
-	btScalar realiseExit(const btVector3 &origin, const btVector3 &dir, btScalar skin, btVector3 &out,
-						 int *exitEllipsoid, bool lastExit);
-	bool escapesUnion(const btVector3 &p, const btVector3 &preferred) const;
+	int candidateDirections(const btVector3& from, btVector3* dirs) const;
+	static btVector3 latticeDirection(int d);
+	void finishExit(const btVector3& point, const btVector3& dir, int exitEllipsoid, const btVector3& from,
+					btPushOutResult& out) const;
+	int bestEscapingExit(const btVector3& from, const btVector3* dirs, const btScalar* nominal, int ndirs, btScalar skin,
+						 btVector3& out, int& bestExit);
+	int shortestLastChordExit(const btVector3& from, const btVector3* dirs, int ndirs, btScalar skin, btVector3& out,
+							  int& bestExit);
+	void leaveUnionBox(const btVector3& from, const btVector3& dir, btScalar skin, btVector3& out) const;
+	void collectRayIntervals(const btVector3& origin, const btVector3& dir, btScalar skin);
+	btScalar firstUncovered(btScalar from, btScalar scale, int* exitEllipsoid) const;
+	btScalar unionExitAlongRay(const btVector3& origin, const btVector3& dir, btScalar skin, int* exitEllipsoid);
+	btScalar realiseExit(const btVector3& origin, const btVector3& dir, btScalar skin, btVector3& out,
+						 int* exitEllipsoid, bool lastExit);
+	bool escapesUnion(const btVector3& p, const btVector3& preferred) const;
 };
 
 #endif // BT_ELLIPSOID_UNION_PUSH_OUT_H

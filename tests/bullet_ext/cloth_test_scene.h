@@ -133,6 +133,9 @@ public:
 		psb->m_cfg.piterations = 4;
 		psb->m_cfg.kDP = btScalar(0.005);
 		psb->m_materials[0]->m_kLST = btScalar(0.9);
+		// Friction kDF 0.6 x the body's 0.5 (Bullet's default) = 0.3, the collider's default before it honoured
+		// Bullet's combination (issue 12 item 10).
+		psb->m_cfg.kDF = btScalar(0.6);
 		psb->setTotalMass(mass);
 		world_.getWorld()->addSoftBody(psb);
 		cloths_.push_back(psb);

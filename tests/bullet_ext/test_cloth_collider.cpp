@@ -323,8 +323,9 @@ TEST_CASE("nodes starting inside: at a centre, on a surface, at a triple interse
 		first.push_back(probe.x(i));
 	}
 	CHECK(c->getLastSubstepStats().m_nodesPushedOut == 3);
-	// The node on the surface went back to the surface (+ skin), not somewhere else.
-	CHECK((probe.x(1) - btVector3(0, 0.102, 0)).length() < 1e-5);
+	// The node on the surface went back to the surface, not somewhere else: at its own clearance, which is 0 (a node
+	// that starts within the skin is not pushed out to the full skin: issue 12 item 1, resting cloth ping-ponged).
+	CHECK((probe.x(1) - btVector3(0, 0.1, 0)).length() < 1e-5);
 	// Pushed-out nodes are on the union surface: within the skin (+ rounding) of the nearest ellipsoid surface.
 	for (int i : {0, 2, 3})
 		CHECK(minZetaAt(*scene.shape(), probe.x(i)) < std::pow(1.0 + 0.0021 / 0.06, 2));

@@ -114,6 +114,49 @@ FitPipelineOptions fitOptionsFromJson(const nlohmann::json& j, const std::string
 
 } // namespace
 
+namespace
+{
+
+std::string fileNameOf(const std::string& path)
+{
+	const size_t slash = path.find_last_of("/\\");
+	return slash == std::string::npos ? path : path.substr(slash + 1);
+}
+
+/// Fits the mesh at body.meshPath with the pipeline (options from the scene's "fit" object, or the defaults).
+void fitBodyMesh(const Scene& scene, const LoadOptions& lo, BodyData& body)
+{
+	FitPipelineOptions options = scene.body.fit ? fitOptionsFromJson(*scene.body.fit, scene.path) : FitPipelineOptions();
+	options.load = lo;
+	FitPipelineResult fitted = fitMeshFile(body.meshPath, options);
+	body.loadWarnings = fitted.loaded.report.warnings;
+	body.mesh = std::move(fitted.loaded.full);
+	for (const FittedEllipsoid& e : fitted.fit.ellipsoids)
+		body.ellipsoids.push_back(e.ellipsoid);
+	body.fitWarnings.insert(body.fitWarnings.end(), fitted.fit.warnings.begin(), fitted.fit.warnings.end());
+	body.fitSeconds = (fitted.timings.total - fitted.timings.load - fitted.timings.repair) / 1000.0;
+	body.ellipsoidSource = "fit" + (scene.body.fit ? scene.body.fit->dump() : std::string("{}"));
+}
+
+/// Why the scene's fit file does not describe this mesh (its recorded source mesh has another file name or vertex
+/// count), or "" when it does (or records no source).
+std::string fitMismatch(const BodyFit& fit, const std::string& fitFile, const std::string& meshPath, const TriMesh& mesh)
+{
+	if (fit.source.mesh.empty())
+		return "";
+	const bool otherName = fit.source.mesh != fileNameOf(meshPath);
+	const bool otherCount = fit.source.vertices > 0 && fit.source.vertices != int(mesh.V.rows());
+	if (!otherName && !otherCount)
+		return "";
+	std::ostringstream why;
+	why << "the scene's ellipsoids (" << fileNameOf(fitFile) << ") were fitted to " << fit.source.mesh << " ("
+		<< fit.source.vertices << " vertices), not " << fileNameOf(meshPath) << " (" << mesh.V.rows()
+		<< " vertices): refitting the body (pass --ellipsoids to use a fit of your own)";
+	return why.str();
+}
+
+} // namespace
+
 BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std::string& ellipsoidOverride)
 {
 	BodyData body;
@@ -121,19 +164,15 @@ BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std
 	lo.up = scene.body.up;
 	lo.scale = scene.body.scale;
 	body.meshPath = meshOverride.empty() ? scene.body.mesh : meshOverride;
+	const bool otherBody = !meshOverride.empty() && fileNameOf(meshOverride) != fileNameOf(scene.body.mesh);
+	if (otherBody && !scene.garment.mesh.empty())
+		body.fitWarnings.push_back("the scene's garment " + fileNameOf(scene.garment.mesh) + " was placed for " +
+								   fileNameOf(scene.body.mesh) + ", not " + fileNameOf(meshOverride) +
+								   ": it may start inside or far from the body");
 	const std::string fitFile = ellipsoidOverride.empty() ? scene.body.ellipsoids : ellipsoidOverride;
 	if (fitFile.empty() && scene.body.fit)
 	{
-		FitPipelineOptions options = fitOptionsFromJson(*scene.body.fit, scene.path);
-		options.load = lo;
-		FitPipelineResult fitted = fitMeshFile(body.meshPath, options);
-		body.loadWarnings = fitted.loaded.report.warnings;
-		body.mesh = std::move(fitted.loaded.full);
-		for (const FittedEllipsoid& e : fitted.fit.ellipsoids)
-			body.ellipsoids.push_back(e.ellipsoid);
-		body.fitWarnings = fitted.fit.warnings;
-		body.fitSeconds = (fitted.timings.total - fitted.timings.load - fitted.timings.repair) / 1000.0;
-		body.ellipsoidSource = "fit" + scene.body.fit->dump();
+		fitBodyMesh(scene, lo, body);
 		return body;
 	}
 	LoadedMesh loaded = loadTriMesh(body.meshPath, lo);
@@ -142,6 +181,16 @@ BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std
 	if (!fitFile.empty())
 	{
 		const BodyFit fit = readEllipsoidJson(fitFile);
+		// A fit the user named (--ellipsoids) is theirs to choose; the scene's own fit is for the scene's body.
+		const std::string mismatch = ellipsoidOverride.empty() && !meshOverride.empty()
+										 ? fitMismatch(fit, fitFile, body.meshPath, body.mesh)
+										 : std::string();
+		if (!mismatch.empty())
+		{
+			body.fitWarnings.push_back(mismatch);
+			fitBodyMesh(scene, lo, body);
+			return body;
+		}
 		for (const FittedEllipsoid& e : fit.ellipsoids)
 			body.ellipsoids.push_back(e.ellipsoid);
 		body.ellipsoidSource = fitFile;
@@ -386,7 +435,7 @@ DrapeSimulation::DrapeSimulation(const Scene& scene, const BodyData& body, bool 
 		{
 			// Measuring past the limit on purpose: install with a skin the check accepts, then restore the skin.
 			btEllipsoidClothCollider::Config loose = cfg;
-			loose.m_skinOffset = btScalar(1e9);
+			loose.m_skinOffset = btScalar(1); // the largest skin Config validation accepts: resolved up to ~2,000 km
 			collider_ = solver->installCollider(im.world.get(), im.bodyObject.get(), loose, &why);
 			if (collider_)
 				collider_->setConfig(cfg);

@@ -80,23 +80,43 @@ public:
 		PAPER_EQ10 = 1
 	};
 
+	/// The Config::m_friction value that means "as Bullet combines it" (kDF x body friction).
+	static btScalar kBulletFriction() { return btScalar(-1); }
+
 	struct Config
 	{
 		btScalar m_skinOffset;   ///< metres the node is placed outside the surface (default 2 mm)
-		btScalar m_friction;     ///< Coulomb coefficient for REMOVE_NORMAL_COULOMB (default 0.3)
+		/// Coulomb coefficient for REMOVE_NORMAL_COULOMB. The default, kBulletFriction (-1), combines the cloth's and
+		/// the body's settings as Bullet does for its own soft-rigid contacts: soft body m_cfg.kDF times the body's
+		/// getFriction() (per soft body, read every substep); any value >= 0 overrides them.
+		btScalar m_friction;
 		VelocityRule m_velocityRule; ///< default REMOVE_NORMAL_COULOMB
 		bool m_disableBulletResponse; ///< add the body to m_collisionDisabledObjects of every soft body (default true)
+		/// A dynamic btRigidBody (inverse mass > 0, not kinematic) receives the reaction of every velocity change
+		/// the collider gives a node: -m_node (v_after - v_before) at the node (default true; static and kinematic
+		/// bodies are never affected).
+		bool m_applyReactionToBody;
 
 		Config()
 			: m_skinOffset(btScalar(0.002)),
-			  m_friction(btScalar(0.3)),
+			  m_friction(kBulletFriction()),
 			  m_velocityRule(REMOVE_NORMAL_COULOMB),
-			  m_disableBulletResponse(true)
+			  m_disableBulletResponse(true),
+			  m_applyReactionToBody(true)
 		{
 		}
 	};
 
-	btCollisionObject* getBody() const { return m_body; }
+	/// Checks a Config: a non-finite value, a negative skin offset or friction, a skin offset above both 1 m and the
+	/// body's largest semi-axis `bodyExtent` (metres taken for millimetres) or an unknown velocity rule
+	/// is an error (returns false, *error gets a one-line reason); an implausible but usable value (skin offset above
+	/// 5 cm, friction above 2) returns true with *warning set. error / warning may be 0; on success *error is 0, and
+	/// *warning is 0 when nothing is implausible.
+	static bool validateConfig(const Config& config, const char** error, const char** warning,
+							   btScalar bodyExtent = btScalar(0));
+
+	/// The body, or 0 once the collider has detached from it (see isDetached()).
+	btCollisionObject* getBody() const { return m_detached ? 0 : m_body; }
 	btSoftRigidDynamicsWorld* getWorld() const { return m_world; }
 	const Config& getConfig() const { return m_config; }
 	/// A static one-line warning when installCollider found the body far from the origin for this build's btScalar
@@ -105,7 +125,15 @@ public:
 	/// The smallest length btCheckFloatRange is asked to resolve: the skin offset, but at least this (1 mm), so a
 	/// skin offset of 0 still needs coordinates that resolve cloth motion.
 	static btScalar minPrecisionResolution() { return btScalar(0.001); }
-	void setConfig(const Config& config) { m_config = config; }
+	/// Replaces the Config if validateConfig accepts it; otherwise keeps the old one and returns false with the
+	/// reason in *error (if error is not 0).
+	bool setConfig(const Config& config, const char** error = 0);
+	/// The warning of validateConfig for the current Config (0 if none).
+	const char* getConfigWarning() const { return m_configWarning; }
+
+	/// True once the body was found removed from the world it was in at install: the collider then stops colliding
+	/// and never reads the body again (it may be deleted; uninstallCollider still removes the collider).
+	bool isDetached() const { return m_detached; }
 
 	/// Counters of the most recent substep.
 	const btEllipsoidClothStats& getLastSubstepStats() const { return m_lastStats; }
@@ -132,7 +160,10 @@ protected:
 	btEllipsoidClothStats m_lastStats;
 	btEllipsoidClothStats m_accumulatedStats;
 	bool m_havePose; ///< false: the next substep takes the body's pose as it is (no motion)
+	bool m_detached; ///< the body left the world (see isDetached())
+	const char* m_configWarning;
 	const char* m_precisionWarning; ///< see getPrecisionWarning
+	btScalar m_bodyExtent; ///< largest semi-axis of the body's ellipsoids (for validateConfig)
 
 private:
 	btEllipsoidClothCollider(const btEllipsoidClothCollider&);
@@ -150,18 +181,19 @@ public:
 	btEllipsoidClothSoftBodySolver();
 	virtual ~btEllipsoidClothSoftBodySolver();
 
-	/// In a float build the body must be near enough the origin for float coordinates to resolve the skin offset
-	/// (at least minPrecisionResolution()): beyond BT_FLOAT_RANGE_REFUSE of btCheckFloatRange (btFloatRange.h;
-	/// 8,192 m for the default 2 mm skin) installCollider refuses with the reason; beyond BT_FLOAT_RANGE_WARN
-	/// (1,024 m) it installs and getPrecisionWarning() says why the result may be degraded. The check uses the body's
-	/// pose at installation.
-	/// Installs the collider for `body` in `world`, which must have been built with this solver (Bullet 3.24's
-	/// btSoftRigidDynamicsWorld does not tell its solver; when the world already has soft bodies, their solver is
-	/// checked). The body's collision shape must be a btEllipsoidCompoundShape (or a single btEllipsoidShape). The
-	/// body need not be in the world. The collider acts on every soft body this solver steps.
+	/// Installs the collider for `body` in `world`, which must be a btSoftRigidDynamicsWorld (getWorldType()
+	/// BT_SOFT_RIGID_DYNAMICS_WORLD; any other world, btDeformableMultiBodyDynamicsWorld included, is refused) built
+	/// with this solver (Bullet 3.24's btSoftRigidDynamicsWorld does not tell its solver; when the world already has
+	/// soft bodies, their solver is checked). The body's collision shape must be a btEllipsoidCompoundShape (or a
+	/// single btEllipsoidShape); the Config must pass validateConfig (its warning is in getConfigWarning()). The body
+	/// need not be in the world. The collider acts on every soft body this solver steps.
+	/// Ownership: the solver owns the collider; the caller owns the body, which must outlive the collider. Removing
+	/// the body from the world it was in at install detaches the collider (it stops colliding and never reads the
+	/// body again, so the body may then be deleted); debug builds assert on it, since the intended order is
+	/// uninstallCollider first. A body that was never in the world cannot be watched: uninstall before deleting it.
 	/// \return the collider, owned by this solver (removed with uninstallCollider or when the solver is destroyed),
 	/// or 0 when a precondition fails; the reason is written to *whyNot (a static one-line string) if whyNot is not 0.
-	btEllipsoidClothCollider* installCollider(btSoftRigidDynamicsWorld* world, btCollisionObject* body,
+	btEllipsoidClothCollider* installCollider(btDynamicsWorld* world, btCollisionObject* body,
 											  const btEllipsoidClothCollider::Config& config = btEllipsoidClothCollider::Config(),
 											  const char** whyNot = 0);
 	/// Removes and deletes the collider; re-enables Bullet's own response for the body. \return false if not found.

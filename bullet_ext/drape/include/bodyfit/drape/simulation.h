@@ -34,13 +34,18 @@ struct BodyData
 	std::string meshPath;
 	std::string ellipsoidSource; ///< fit file, or "fit(...)" when the fitter ran
 	double fitSeconds = 0.0;     ///< time spent segmenting and fitting (0 when read from a file)
-	std::vector<std::string> fitWarnings; ///< the fit's warnings (e.g. the non-human fallback), when the fitter ran
+	std::vector<std::string> fitWarnings; ///< the fit's warnings (e.g. the non-human fallback), when the fitter ran,
+										  ///< and why it ran or why the garment may not fit (see loadBody)
 	/// What loading the body mesh found: several meshes joined or props left out of the fit, coordinates coarse in
 	/// assimp's float (bodyfit::MeshReport::warnings). In the metrics JSON as "load_warnings".
 	std::vector<std::string> loadWarnings;
 };
 
 /// Loads the body as the scene says; the overrides replace scene.body.mesh / scene.body.ellipsoids when not empty.
+/// With a mesh override and no ellipsoid override, the scene's fit file is used only if its recorded source (mesh
+/// file name and vertex count) is that mesh; otherwise the mesh is fitted (the scene's "fit" options or the
+/// defaults) and the reason is the first of fitWarnings. A mesh garment of a scene whose body was overridden by
+/// another mesh adds a warning too (it was placed for the scene's body).
 /// \throws MeshLoadError, InvalidInputError, FormatError with a one-line reason.
 BodyData loadBody(const Scene& scene, const std::string& meshOverride = "", const std::string& ellipsoidOverride = "");
 
