@@ -21,6 +21,9 @@
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/mvee.h"
 #include "bodyfit/fitting/segmentation.h"
+#include "bodyfit/fitting/statistics.h"
+#include "bodyfit/fitting/timing.h"
+#include "bodyfit/metrics/cloth_metrics.h"
 #include "bodyfit/fitting/types.h"
 
 #include "BulletSoftBody/btSoftBodyHelpers.h"
