@@ -28,7 +28,7 @@
 #include "common/cli.h"
 
 #include "bodyfit/fitting/statistics.h"
-#include "bodyfit/fitting/timing.h"
+#include "bodyfit/bullet_ext/btTiming.h"
 
 #include <algorithm>
 #include <chrono>
@@ -141,21 +141,30 @@ struct SuiteRegistrar
 		#NAME, DESCRIPTION, &bodyfitBenchSuite_##NAME, std::vector<::bodyfit_bench::SuiteOption>{__VA_ARGS__});        \
 	static int bodyfitBenchSuite_##NAME(const ::bodyfit_bench::Context& ctx)
 
-/// Median wall time in milliseconds of `repeats` calls of f (after one untimed warm-up call).
-template <class F>
-double medianMs(int repeats, F&& f)
+/// Median over `repeats` calls of f (after one untimed warm-up call) of clock() after - before, in milliseconds;
+/// `clock` returns seconds.
+template <class F, class C>
+double medianOfCalls(int repeats, F&& f, C&& clock)
 {
 	f();
 	std::vector<double> ms;
 	ms.reserve(size_t(std::max(1, repeats)));
 	for (int r = 0; r < std::max(1, repeats); ++r)
 	{
-		const auto t0 = std::chrono::steady_clock::now();
+		const double t0 = clock();
 		f();
-		const auto t1 = std::chrono::steady_clock::now();
-		ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+		ms.push_back(1e3 * (clock() - t0));
 	}
 	return bodyfit::median(ms);
+}
+
+/// Median wall time in milliseconds of `repeats` calls of f (after one untimed warm-up call).
+template <class F>
+double medianMs(int repeats, F&& f)
+{
+	return medianOfCalls(repeats, f, [] {
+		return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+	});
 }
 
 /// Median thread CPU time in milliseconds of `repeats` calls of f (after one untimed warm-up call): unlike wall time
@@ -163,16 +172,7 @@ double medianMs(int repeats, F&& f)
 template <class F>
 double medianCpuMs(int repeats, F&& f)
 {
-	f();
-	std::vector<double> ms;
-	ms.reserve(size_t(std::max(1, repeats)));
-	for (int r = 0; r < std::max(1, repeats); ++r)
-	{
-		const double t0 = bodyfit::threadCpuSeconds();
-		f();
-		ms.push_back(1e3 * (bodyfit::threadCpuSeconds() - t0));
-	}
-	return bodyfit::median(ms);
+	return medianOfCalls(repeats, f, [] { return btThreadCpuSeconds(); });
 }
 
 /// Fixed-point formatting with `digits` decimals; scientific when the value is tiny or huge.

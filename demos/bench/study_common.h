@@ -11,7 +11,7 @@
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/segmentation.h"
 #include "bodyfit/fitting/statistics.h"
-#include "bodyfit/fitting/timing.h"
+#include "bodyfit/bullet_ext/btTiming.h"
 
 #include "bodyfit/drape/garment.h"
 #include "bodyfit/drape/scene.h"
@@ -38,7 +38,6 @@ namespace bodyfit_study
 {
 
 using bodyfit::median;
-using bodyfit::secondsSince;
 using bodyfit_bench::Context;
 using bodyfit_bench::fmt;
 using bodyfit_bench::fmtInt;
@@ -69,6 +68,8 @@ inline const std::vector<BodyAsset>& bundledBodies()
 	};
 	return bodies;
 }
+
+inline double secondsSince(std::chrono::steady_clock::time_point t0) { return btSecondsSince(t0); }
 
 /// Progress line on stderr: "[suite] message".
 inline void progress(const char* suite, const char* format, ...)

@@ -8,7 +8,7 @@
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/segmentation.h"
 #include "bodyfit/fitting/statistics.h"
-#include "bodyfit/fitting/timing.h"
+#include "bodyfit/bullet_ext/btTiming.h"
 
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
@@ -52,10 +52,10 @@ public:
 	void performDiscreteCollisionDetection() override
 	{
 		const Clock::time_point t0 = Clock::now();
-		const double c0 = threadCpuSeconds();
+		const double c0 = btThreadCpuSeconds();
 		btSoftRigidDynamicsWorld::performDiscreteCollisionDetection();
-		collisionCpuSeconds += threadCpuSeconds() - c0;
-		collisionSeconds += secondsSince(t0);
+		collisionCpuSeconds += btThreadCpuSeconds() - c0;
+		collisionSeconds += btSecondsSince(t0);
 	}
 	double collisionSeconds = 0.0;
 	double collisionCpuSeconds = 0.0;
@@ -120,7 +120,7 @@ BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std
 		const BodyFit fit = fitBody(loaded.mesh, seg.labels, options);
 		for (const FittedEllipsoid& e : fit.ellipsoids)
 			body.ellipsoids.push_back(e.ellipsoid);
-		body.fitSeconds = secondsSince(t0);
+		body.fitSeconds = btSecondsSince(t0);
 		body.ellipsoidSource = "fit" + scene.body.fit->dump();
 	}
 	return body;
@@ -418,7 +418,7 @@ StepStats DrapeSimulation::step()
 	if (collider_)
 		collider_->resetStats();
 	const Clock::time_point t0 = Clock::now();
-	const double c0 = threadCpuSeconds();
+	const double c0 = btThreadCpuSeconds();
 	for (int s = 0; s < scene_.solver.substeps; ++s)
 	{
 		for (const auto& e : effects_)
@@ -426,8 +426,8 @@ StepStats DrapeSimulation::step()
 		im.world->stepSimulation(btScalar(dt), 0, btScalar(dt));
 		time_ += dt;
 	}
-	stats.cpuSeconds = threadCpuSeconds() - c0;
-	stats.seconds = secondsSince(t0);
+	stats.cpuSeconds = btThreadCpuSeconds() - c0;
+	stats.seconds = btSecondsSince(t0);
 	stats.collisionSeconds = im.world->collisionSeconds;
 	stats.collisionCpuSeconds = im.world->collisionCpuSeconds;
 	if (collider_)

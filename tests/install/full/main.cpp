@@ -9,6 +9,7 @@
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 #include "bodyfit/bullet_ext/btEllipsoidShape.h"
+#include "bodyfit/bullet_ext/btTiming.h"
 #include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/ellipsoid.h"
 #include "bodyfit/fitting/ellipsoid_io.h"
@@ -22,7 +23,6 @@
 #include "bodyfit/fitting/mvee.h"
 #include "bodyfit/fitting/segmentation.h"
 #include "bodyfit/fitting/statistics.h"
-#include "bodyfit/fitting/timing.h"
 #include "bodyfit/metrics/cloth_metrics.h"
 #include "bodyfit/fitting/types.h"
 
