@@ -11,13 +11,11 @@
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/segmentation.h"
 #include "bodyfit/fitting/statistics.h"
-#include "bodyfit/bullet_ext/btTiming.h"
 
+#include "bodyfit/bullet_ext/btTiming.h"
 #include "bodyfit/drape/garment.h"
 #include "bodyfit/drape/scene.h"
 #include "bodyfit/drape/simulation.h"
-
-#include <BulletSoftBody/btSoftBody.h>
 
 #include <nlohmann/json.hpp>
 
@@ -263,45 +261,15 @@ struct DrapeResult
 	nlohmann::json metrics;
 };
 
-/// Cloth node positions of a simulation (world), e.g. a settled drape to start other runs from.
-inline std::vector<Eigen::Vector3d> clothPositions(const bodyfit::drape::DrapeSimulation& sim)
-{
-	const bodyfit::TriMesh m = sim.clothMesh();
-	std::vector<Eigen::Vector3d> p(size_t(m.V.rows()));
-	for (int i = 0; i < m.V.rows(); ++i)
-		p[size_t(i)] = m.V.row(i).transpose();
-	return p;
-}
-
-/// Puts the cloth of a fresh simulation at `positions` (at rest), so several colliders start from one state.
-inline void setClothPositions(bodyfit::drape::DrapeSimulation& sim, const std::vector<Eigen::Vector3d>& positions)
-{
-	btSoftBody* cloth = sim.cloth();
-	if (int(positions.size()) != cloth->m_nodes.size())
-		throw std::logic_error("setClothPositions: node count mismatch");
-	for (int i = 0; i < cloth->m_nodes.size(); ++i)
-	{
-		btSoftBody::Node& n = cloth->m_nodes[i];
-		const Eigen::Vector3d& p = positions[size_t(i)];
-		n.m_x = btVector3(btScalar(p.x()), btScalar(p.y()), btScalar(p.z()));
-		n.m_q = n.m_x;
-		n.m_v = btVector3(0, 0, 0);
-		n.m_f = btVector3(0, 0, 0);
-	}
-	cloth->updateBounds();
-}
-
-/// Runs `steps` steps `repeats` times (fresh simulation each time, started from `start` when given).
+/// Runs `steps` steps `repeats` times (fresh simulation each time).
 inline DrapeResult runDrape(const bodyfit::drape::Scene& scene, const bodyfit::drape::BodyData& body, int repeats,
-							int steps, const std::vector<Eigen::Vector3d>* start = nullptr)
+							int steps)
 {
 	std::vector<double> stepMs, collMs;
 	DrapeResult r;
 	for (int k = 0; k < std::max(1, repeats); ++k)
 	{
 		bodyfit::drape::DrapeSimulation sim(scene, body);
-		if (start)
-			setClothPositions(sim, *start);
 		const nlohmann::json m = bodyfit::drape::runAndMeasure(sim, steps);
 		// Median over the steps of the run (robust to the scheduler's stalls on a shared machine; it also leaves
 		// out the few steps in which Bullet's mesh path builds most of its sparse-SDF cells, which favours Bullet),
