@@ -124,8 +124,8 @@ private:
 /// Runs `steps` steps, sampling the inside count every scene.sampleEvery steps and at the end, and returns the
 /// metrics JSON: the run (steps, nodes, ms_per_step, collision_ms_per_step, ...), the cloth metrics at the end
 /// (metrics::toJson: nodes_inside_body, contact_nodes, mean_contact_gap_m, nan_nodes, ...) and their extremes over
-/// the samples (max_nodes_inside_body, max_ellipsoid_penetration_m, min_zeta_over_time, max_nan_nodes). `progress` (may be null) is called after
-/// every step with (done, total).
+/// the samples (max_nodes_inside_body, max_ellipsoid_penetration_m, min_zeta_over_time, max_nan_nodes).
+/// `progress` (may be null) is called after every step with (done, total).
 nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps,
 							 const std::function<void(int, int, const StepStats&)>& progress = nullptr,
 							 const std::function<void(int)>& afterStep = nullptr);
