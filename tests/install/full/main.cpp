@@ -62,11 +62,20 @@ int main()
 	for (int i = 0; i < 60; ++i)
 		world.getWorld()->stepSimulation(btScalar(1.0 / 60), 1, btScalar(1.0 / 60));
 	const btEllipsoidClothStats& stats = collider->getAccumulatedStats();
+	// The cloth metrics of the installed bodyfit::metrics, against the ellipsoids' own surface mesh.
+	std::vector<bodyfit::FittedEllipsoid> fitted(ellipsoids.size());
+	for (std::size_t i = 0; i < ellipsoids.size(); ++i)
+		fitted[i].ellipsoid = ellipsoids[i];
+	const bodyfit::metrics::BodyReference reference(bodyfit::ellipsoidMesh(fitted), ellipsoids);
+	const bodyfit::metrics::ClothMetrics metrics = bodyfit::metrics::measureCloth(*cloth, reference);
 	// The cloth reached the body and no node ended inside (a layout mismatch would scramble the nodes instead).
-	const bool ok = stats.m_nodesCorrected > 0 && stats.m_minZeta >= btScalar(1) && stats.m_nonFiniteNodes == 0;
-	std::printf("outside project: btScalar %d bytes, %d substeps, %d corrections, min zeta %.6f -> %s\n",
+	const bool ok = stats.m_nodesCorrected > 0 && stats.m_minZeta >= btScalar(1) && stats.m_nonFiniteNodes == 0 &&
+					metrics.contacts.contactNodes > 0 && metrics.penetration.insideEllipsoids == 0 &&
+					metrics.penetration.nanNodes == 0;
+	std::printf("outside project: btScalar %d bytes, %d substeps, %d corrections, min zeta %.6f, %d contact nodes "
+				"-> %s\n",
 				int(sizeof(btScalar)), stats.m_substeps, stats.m_nodesCorrected, double(stats.m_minZeta),
-				ok ? "ok" : "FAILED");
+				metrics.contacts.contactNodes, ok ? "ok" : "FAILED");
 	world.getWorld()->removeSoftBody(cloth);
 	delete cloth;
 	world.getWorld()->removeCollisionObject(&body);
