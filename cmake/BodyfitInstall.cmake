@@ -8,7 +8,8 @@
 #     bullet_ext  bodyfit::bullet_ext   Bullet only
 #     fitting     bodyfit::fitting      Eigen, assimp, nlohmann-json
 #     bridge      bodyfit::bridge       bullet_ext + fitting
-#     drape       bodyfit::drape        bridge + nlohmann-json
+#     metrics     bodyfit::metrics      bullet_ext + fitting (+ the bridge's conversions) + nlohmann-json
+#     drape       bodyfit::drape        bridge + metrics + nlohmann-json
 # Headers: include/bodyfit/<layer>/*.h, included as "bodyfit/<layer>/file.h" in and outside the build tree.
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
@@ -21,11 +22,11 @@ set(_bodyfit_dest ARCHIVE DESTINATION "${CMAKE_INSTALL_LIBDIR}" LIBRARY DESTINAT
 # One export set per dependency group, so the Bullet-only component can be loaded alone.
 install(TARGETS bodyfit_bullet_ext bodyfit_bullet_deps EXPORT bodyfitBulletTargets ${_bodyfit_dest})
 install(TARGETS bodyfit_fitting EXPORT bodyfitFittingTargets ${_bodyfit_dest})
-install(TARGETS bodyfit_bridge bodyfit_drape EXPORT bodyfitSceneTargets ${_bodyfit_dest})
+install(TARGETS bodyfit_bridge bodyfit_metrics bodyfit_drape EXPORT bodyfitSceneTargets ${_bodyfit_dest})
 
 install(DIRECTORY "${PROJECT_SOURCE_DIR}/fitting/include/bodyfit/" DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}/bodyfit"
 	FILES_MATCHING PATTERN "*.h")
-foreach(_dir bullet_ext bullet_ext/bridge bullet_ext/drape)
+foreach(_dir bullet_ext bullet_ext/bridge bullet_ext/metrics bullet_ext/drape)
 	install(DIRECTORY "${PROJECT_SOURCE_DIR}/${_dir}/include/bodyfit/" DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}/bodyfit"
 		FILES_MATCHING PATTERN "*.h")
 endforeach()
@@ -44,7 +45,7 @@ file(WRITE "${_bodyfit_config_in}" [=[
 # bodyfit @PROJECT_VERSION@, built against Bullet @BULLET_VERSION_STRING@, double precision: @BODYFIT_BULLET_DOUBLE@.
 include(CMakeFindDependencyMacro)
 set(bodyfit_BULLET_DOUBLE @BODYFIT_BULLET_DOUBLE@)
-set(_bodyfit_known bullet_ext fitting bridge drape)
+set(_bodyfit_known bullet_ext fitting bridge metrics drape)
 set(_bodyfit_wanted ${bodyfit_FIND_COMPONENTS})
 if(NOT _bodyfit_wanted)
 	set(_bodyfit_wanted ${_bodyfit_known})
@@ -57,10 +58,10 @@ foreach(_c IN LISTS _bodyfit_wanted)
 		set(bodyfit_NOT_FOUND_MESSAGE "bodyfit: unknown component '${_c}' (known: ${_bodyfit_known})")
 		return()
 	endif()
-	if(_c STREQUAL "fitting" OR _c STREQUAL "bridge" OR _c STREQUAL "drape")
+	if(_c STREQUAL "fitting" OR _c STREQUAL "bridge" OR _c STREQUAL "metrics" OR _c STREQUAL "drape")
 		set(_bodyfit_need_fitting ON)
 	endif()
-	if(_c STREQUAL "bridge" OR _c STREQUAL "drape")
+	if(_c STREQUAL "bridge" OR _c STREQUAL "metrics" OR _c STREQUAL "drape")
 		set(_bodyfit_need_scene ON)
 	endif()
 endforeach()

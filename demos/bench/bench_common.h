@@ -1,7 +1,7 @@
 #pragma once
 /// \file bench_common.h
-/// Shared pieces of `bodyfit-bench`: the suite registry, median timing and result tables (markdown on stdout,
-/// CSV in --out DIR).
+/// Shared pieces of `bodyfit-bench`: the suite registry (with each suite's own command-line options), median timing
+/// and result tables (markdown on stdout, CSV in --out DIR).
 ///
 /// Adding a suite: create demos/bench/suite_<name>.cpp (demos/CMakeLists.txt globs demos/bench/suite_*.cpp into
 /// bodyfit-bench; re-run cmake after adding the file) and register it at namespace scope:
@@ -15,6 +15,20 @@
 ///   }
 ///
 /// The body receives `const bodyfit_bench::Context& ctx` and returns a process exit code (0 = ok).
+///
+/// A suite with settings of its own declares them as options (`bodyfit-bench NAME --steps 120`); the command line
+/// accepts them only together with that suite, and the body reads them from ctx (range-checked, one-line errors):
+///
+///   BODYFIT_BENCH_SUITE_WITH_OPTIONS(drop, "cloth drop", {"--steps", "N", "steps to run (default 120)"})
+///   {
+///       const int steps = ctx.integer("--steps", 120, 1, 100000);
+///       ...
+///   }
+
+#include "common/cli.h"
+
+#include "bodyfit/fitting/statistics.h"
+#include "bodyfit/bullet_ext/btTiming.h"
 
 #include <algorithm>
 #include <chrono>
@@ -24,12 +38,21 @@
 #include <fstream>
 #include <functional>
 #include <iostream>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace bodyfit_bench
 {
+
+/// An option of one suite: `name` with its dashes, always followed by a value.
+struct SuiteOption
+{
+	std::string name;
+	std::string metavar;
+	std::string help;
+};
 
 /// What the command line asked for.
 struct Context
@@ -38,6 +61,44 @@ struct Context
 	int repeats = 15;   ///< timed repetitions per measurement (the median is reported)
 	bool repeatsGiven = false; ///< --repeats was on the command line (suites with their own default use it then)
 	bool quick = false;        ///< --quick: smaller sweeps / shorter runs (each suite says what it drops)
+	std::map<std::string, std::string> options; ///< the suite's own options that were given (name -> value)
+
+	bool has(const std::string& name) const { return options.count(name) != 0; }
+	/// The option as text, or `fallback` when absent.
+	std::string text(const std::string& name, const std::string& fallback) const
+	{
+		return has(name) ? options.at(name) : fallback;
+	}
+	/// The option as a number in [lo, hi], or `fallback`. \throws bodyfit_cli::UsageError naming the option.
+	double number(const std::string& name, double fallback, double lo, double hi) const
+	{
+		if (!has(name))
+			return fallback;
+		const double v = bodyfit_cli::parseDouble(options.at(name), name);
+		if (!(v >= lo && v <= hi))
+			throw bodyfit_cli::UsageError(name + ": " + options.at(name) + " is out of range [" + fmtRange(lo) +
+										  ", " + fmtRange(hi) + "]");
+		return v;
+	}
+	/// The option as an integer in [lo, hi], or `fallback`. \throws bodyfit_cli::UsageError naming the option.
+	int integer(const std::string& name, int fallback, long long lo, long long hi) const
+	{
+		if (!has(name))
+			return fallback;
+		const long long v = bodyfit_cli::parseInt(options.at(name), name);
+		if (v < lo || v > hi)
+			throw bodyfit_cli::UsageError(name + ": " + options.at(name) + " is out of range [" + std::to_string(lo) +
+										  ", " + std::to_string(hi) + "]");
+		return int(v);
+	}
+
+private:
+	static std::string fmtRange(double v)
+	{
+		char buf[32];
+		std::snprintf(buf, sizeof buf, "%g", v);
+		return buf;
+	}
 };
 
 using SuiteFunction = int (*)(const Context&);
@@ -47,6 +108,7 @@ struct Suite
 	std::string name;
 	std::string description;
 	SuiteFunction run = nullptr;
+	std::vector<SuiteOption> options;
 };
 
 /// All suites linked into the executable, in registration order (sorted by name when listed).
@@ -58,9 +120,10 @@ inline std::vector<Suite>& registry()
 
 struct SuiteRegistrar
 {
-	SuiteRegistrar(const char* name, const char* description, SuiteFunction run)
+	SuiteRegistrar(const char* name, const char* description, SuiteFunction run,
+				   std::vector<SuiteOption> options = {})
 	{
-		registry().push_back(Suite{name, description, run});
+		registry().push_back(Suite{name, description, run, std::move(options)});
 	}
 };
 
@@ -71,23 +134,45 @@ struct SuiteRegistrar
 	                                                                           &bodyfitBenchSuite_##NAME);          \
 	static int bodyfitBenchSuite_##NAME(const ::bodyfit_bench::Context& ctx)
 
-/// Median wall time in milliseconds of `repeats` calls of f (after one untimed warm-up call).
-template <class F>
-double medianMs(int repeats, F&& f)
+/// The same, with the suite's own options (SuiteOption initialisers, e.g. {"--steps", "N", "steps to run"}).
+#define BODYFIT_BENCH_SUITE_WITH_OPTIONS(NAME, DESCRIPTION, ...)                                                      \
+	static int bodyfitBenchSuite_##NAME(const ::bodyfit_bench::Context& ctx);                                         \
+	static const ::bodyfit_bench::SuiteRegistrar bodyfitBenchRegistrar_##NAME(                                        \
+		#NAME, DESCRIPTION, &bodyfitBenchSuite_##NAME, std::vector<::bodyfit_bench::SuiteOption>{__VA_ARGS__});        \
+	static int bodyfitBenchSuite_##NAME(const ::bodyfit_bench::Context& ctx)
+
+/// Median over `repeats` calls of f (after one untimed warm-up call) of clock() after - before, in milliseconds;
+/// `clock` returns seconds.
+template <class F, class C>
+double medianOfCalls(int repeats, F&& f, C&& clock)
 {
 	f();
 	std::vector<double> ms;
 	ms.reserve(size_t(std::max(1, repeats)));
 	for (int r = 0; r < std::max(1, repeats); ++r)
 	{
-		const auto t0 = std::chrono::steady_clock::now();
+		const double t0 = clock();
 		f();
-		const auto t1 = std::chrono::steady_clock::now();
-		ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+		ms.push_back(1e3 * (clock() - t0));
 	}
-	std::sort(ms.begin(), ms.end());
-	const size_t m = ms.size() / 2;
-	return ms.size() % 2 == 1 ? ms[m] : 0.5 * (ms[m - 1] + ms[m]);
+	return bodyfit::median(ms);
+}
+
+/// Median wall time in milliseconds of `repeats` calls of f (after one untimed warm-up call).
+template <class F>
+double medianMs(int repeats, F&& f)
+{
+	return medianOfCalls(repeats, f, [] {
+		return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+	});
+}
+
+/// Median thread CPU time in milliseconds of `repeats` calls of f (after one untimed warm-up call): unlike wall time
+/// it does not grow when other processes compete for the cores, so it is the figure to quote from a shared machine.
+template <class F>
+double medianCpuMs(int repeats, F&& f)
+{
+	return medianOfCalls(repeats, f, [] { return btThreadCpuSeconds(); });
 }
 
 /// Fixed-point formatting with `digits` decimals; scientific when the value is tiny or huge.

@@ -2,7 +2,7 @@
 /// \file study_common.h
 /// Shared pieces of the study suites (accuracy_time, paper_table2, body_resolution, garment_resolution, colliders):
 /// bundled body list, Markdown + CSV + gnuplot PNG output, progress on stderr, cached fits, and the drape runs
-/// (a cloth patch dropped over the head and shoulders, built through demos/drape like bodyfit-drape does).
+/// (a cloth patch dropped over the head and shoulders, run by the scene runner bodyfit::drape like bodyfit-drape).
 
 #include "bench/bench_common.h"
 
@@ -11,11 +11,12 @@
 #include "bodyfit/fitting/fit_pipeline.h"
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/segmentation.h"
+#include "bodyfit/fitting/statistics.h"
 
+#include "bodyfit/bullet_ext/btTiming.h"
+#include "bodyfit/drape/garment.h"
 #include "bodyfit/drape/scene.h"
 #include "bodyfit/drape/simulation.h"
-
-#include <BulletSoftBody/btSoftBody.h>
 
 #include <nlohmann/json.hpp>
 
@@ -35,6 +36,7 @@
 namespace bodyfit_study
 {
 
+using bodyfit::median;
 using bodyfit_bench::Context;
 using bodyfit_bench::fmt;
 using bodyfit_bench::fmtInt;
@@ -66,6 +68,8 @@ inline const std::vector<BodyAsset>& bundledBodies()
 	return bodies;
 }
 
+inline double secondsSince(std::chrono::steady_clock::time_point t0) { return btSecondsSince(t0); }
+
 /// Progress line on stderr: "[suite] message".
 inline void progress(const char* suite, const char* format, ...)
 {
@@ -76,20 +80,6 @@ inline void progress(const char* suite, const char* format, ...)
 	va_end(args);
 	std::fprintf(stderr, "[%s] %s\n", suite, buf);
 	std::fflush(stderr);
-}
-
-inline double secondsSince(std::chrono::steady_clock::time_point t0)
-{
-	return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-inline double median(std::vector<double> v)
-{
-	if (v.empty())
-		return 0.0;
-	std::sort(v.begin(), v.end());
-	const size_t m = v.size() / 2;
-	return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
 }
 
 /// Prints the table and, with --out, writes <out>/<stem>.csv and <out>/<stem>.md (title, notes, table).
@@ -226,19 +216,6 @@ inline bodyfit::drape::Scene patchDropScene(const std::string& meshFile, const b
 											 bodyfit::drape::ColliderKind collider, const PatchDrop& p)
 {
 	using namespace bodyfit::drape;
-	const double top = mesh.V.col(1).maxCoeff();
-	const double bottom = mesh.V.col(1).minCoeff();
-	const double h = top - bottom;
-	// Centre over the head: mean x, z of the vertices in the top 10% of the height.
-	Eigen::Vector2d c(0, 0);
-	int n = 0;
-	for (int i = 0; i < mesh.V.rows(); ++i)
-		if (mesh.V(i, 1) > top - 0.1 * h)
-		{
-			c += Eigen::Vector2d(mesh.V(i, 0), mesh.V(i, 2));
-			++n;
-		}
-	c /= double(std::max(1, n));
 	Scene s;
 	s.path = assetPath("patch_drop(generated)");
 	s.name = "patch_drop";
@@ -250,7 +227,7 @@ inline bodyfit::drape::Scene patchDropScene(const std::string& meshFile, const b
 	s.garment.type = GarmentType::Patch;
 	s.garment.size = Eigen::Vector2d(p.size, p.size);
 	s.garment.resolution = Eigen::Vector2i(p.resolution, p.resolution);
-	s.garment.center = Eigen::Vector3d(c.x(), top + p.drop, c.y());
+	s.garment.center = patchCenterAboveHead(mesh, p.drop);
 	s.material.stretch = 0.9;
 	s.material.bending = 0.15;
 	s.material.damping = 0.01;
@@ -286,56 +263,15 @@ struct DrapeResult
 	nlohmann::json metrics;
 };
 
-/// Cloth node positions of a simulation (world), e.g. a settled drape to start other runs from.
-inline std::vector<Eigen::Vector3d> clothPositions(const bodyfit::drape::DrapeSimulation& sim)
-{
-	const bodyfit::TriMesh m = sim.clothMesh();
-	std::vector<Eigen::Vector3d> p(size_t(m.V.rows()));
-	for (int i = 0; i < m.V.rows(); ++i)
-		p[size_t(i)] = m.V.row(i).transpose();
-	return p;
-}
-
-/// Puts the cloth of a fresh simulation at `positions` (at rest), so several colliders start from one state.
-inline void setClothPositions(bodyfit::drape::DrapeSimulation& sim, const std::vector<Eigen::Vector3d>& positions)
-{
-	btSoftBody* cloth = sim.cloth();
-	if (int(positions.size()) != cloth->m_nodes.size())
-		throw std::logic_error("setClothPositions: node count mismatch");
-	for (int i = 0; i < cloth->m_nodes.size(); ++i)
-	{
-		btSoftBody::Node& n = cloth->m_nodes[i];
-		const Eigen::Vector3d& p = positions[size_t(i)];
-		n.m_x = btVector3(btScalar(p.x()), btScalar(p.y()), btScalar(p.z()));
-		n.m_q = n.m_x;
-		n.m_v = btVector3(0, 0, 0);
-		n.m_f = btVector3(0, 0, 0);
-	}
-	cloth->updateBounds();
-}
-
-/// Empties Bullet's sparse SDF before the world is destroyed. Bullet's concave soft-body path caches one prism shape
-/// per touched triangle, and tearing the collision algorithm down calls btSparseSdf::RemoveReferences once per
-/// cached shape, each a scan over every SDF cell: with thousands of triangles and cells that takes minutes (measured:
-/// > 5 min after a single step of a 1k-node patch on the 13k-vertex body). With the cells released first, each scan
-/// is over an empty table. Not part of any timed region.
-inline void releaseSparseSdf(bodyfit::drape::DrapeSimulation& sim)
-{
-	if (sim.cloth() && sim.cloth()->getWorldInfo())
-		sim.cloth()->getWorldInfo()->m_sparsesdf.Reset();
-}
-
-/// Runs `steps` steps `repeats` times (fresh simulation each time, started from `start` when given).
+/// Runs `steps` steps `repeats` times (fresh simulation each time).
 inline DrapeResult runDrape(const bodyfit::drape::Scene& scene, const bodyfit::drape::BodyData& body, int repeats,
-							int steps, const std::vector<Eigen::Vector3d>* start = nullptr)
+							int steps)
 {
 	std::vector<double> stepMs, collMs;
 	DrapeResult r;
 	for (int k = 0; k < std::max(1, repeats); ++k)
 	{
 		bodyfit::drape::DrapeSimulation sim(scene, body);
-		if (start)
-			setClothPositions(sim, *start);
 		const nlohmann::json m = bodyfit::drape::runAndMeasure(sim, steps);
 		// Median over the steps of the run (robust to the scheduler's stalls on a shared machine; it also leaves
 		// out the few steps in which Bullet's mesh path builds most of its sparse-SDF cells, which favours Bullet),
@@ -344,7 +280,6 @@ inline DrapeResult runDrape(const bodyfit::drape::Scene& scene, const bodyfit::d
 		collMs.push_back(m.value("collision_ms_per_step_median", m.value("collision_ms_per_step", 0.0)));
 		r.metrics = m;
 		r.colliderDescription = sim.colliderDescription();
-		releaseSparseSdf(sim);
 		std::replace(r.colliderDescription.begin(), r.colliderDescription.end(), ',', ';'); // CSV cell
 	}
 	const nlohmann::json& m = r.metrics;

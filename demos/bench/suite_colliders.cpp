@@ -54,14 +54,9 @@ RunStats runCapped(const bodyfit::drape::Scene& scene, const bodyfit::drape::Bod
 	}
 	r.stepMs = median(stepMs);
 	r.collMs = median(collMs);
-	const std::vector<int> contacts = sim.contactNodes();
-	r.contacts = int(contacts.size());
-	const std::vector<double> gaps = sim.skinDistances(contacts);
-	double sum = 0.0;
-	for (double g : gaps)
-		sum += g;
-	r.gapMm = gaps.empty() ? 0.0 : 1e3 * sum / double(gaps.size());
-	releaseSparseSdf(sim);
+	const bodyfit::metrics::ContactMetrics contacts = sim.contacts();
+	r.contacts = contacts.contactNodes;
+	r.gapMm = contacts.gap.count ? 1e3 * contacts.gap.mean : 0.0;
 	return r;
 }
 

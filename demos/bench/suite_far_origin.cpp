@@ -6,6 +6,8 @@
 // see where float stops being safe (docs/ROBUSTNESS.md, section 9).
 #include "bench/study_common.h"
 
+#include <BulletSoftBody/btSoftBody.h>
+
 #include "bodyfit/bullet_ext/btFloatRange.h"
 
 #include <cmath>

@@ -12,7 +12,6 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
-#include <ctime>
 #include <map>
 #include <random>
 
@@ -44,28 +43,6 @@ double handFarthestRatio(const bodyfit::TriMesh& mesh, const bodyfit::Segmentati
 		if (seg.labels[size_t(v)] == upper || seg.labels[size_t(v)] == lower)
 			farthest = std::max(farthest, d[size_t(v)]);
 	return farthest > 0.0 ? d[size_t(hand)] / farthest : 0.0;
-}
-
-/// Median thread CPU time in ms of `repeats` calls (after one warm-up): unlike wall time it does not grow when other
-/// processes compete for the cores, so it is the figure to quote from a shared machine.
-template <class F>
-double medianCpuMs(int repeats, F&& f)
-{
-	auto now = [] {
-		timespec t{};
-		clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-		return double(t.tv_sec) * 1e3 + double(t.tv_nsec) * 1e-6;
-	};
-	f();
-	std::vector<double> ms;
-	for (int r = 0; r < std::max(1, repeats); ++r)
-	{
-		const double t0 = now();
-		f();
-		ms.push_back(now() - t0);
-	}
-	std::sort(ms.begin(), ms.end());
-	return ms[ms.size() / 2];
 }
 
 std::string subjectOf(const std::string& name)

@@ -13,7 +13,6 @@
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/segmentation.h"
 
-#include <ctime>
 
 namespace
 {
@@ -28,29 +27,6 @@ const std::vector<std::string>& fullBodies()
 std::string mm(double metres)
 {
 	return bodyfit_bench::fmt(metres * 1000.0, 2);
-}
-
-/// Median thread CPU time in ms of `repeats` calls (after one warm-up): unlike wall time it does not grow when other
-/// processes compete for the cores, so it is the figure to compare on a busy machine.
-template <class F>
-double medianCpuMs(int repeats, F&& f)
-{
-	auto now = [] {
-		timespec t;
-		clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-		return double(t.tv_sec) * 1e3 + double(t.tv_nsec) * 1e-6;
-	};
-	f();
-	std::vector<double> ms;
-	for (int r = 0; r < std::max(1, repeats); ++r)
-	{
-		const double t0 = now();
-		f();
-		ms.push_back(now() - t0);
-	}
-	std::sort(ms.begin(), ms.end());
-	const size_t m = ms.size() / 2;
-	return ms.size() % 2 == 1 ? ms[m] : 0.5 * (ms[m - 1] + ms[m]);
 }
 
 struct Measured
@@ -72,7 +48,7 @@ Measured measure(const bodyfit_bench::Context& ctx, const bodyfit::TriMesh& mesh
 	m.fit = bodyfit::fitSegmented(mesh, segmentation, pipeline);
 	pipeline.fit.trueDistance = false;
 	m.medianMs = bodyfit_bench::medianMs(ctx.repeats, [&] { bodyfit::fitSegmented(mesh, segmentation, pipeline); });
-	m.medianCpuMs = medianCpuMs(ctx.repeats, [&] { bodyfit::fitSegmented(mesh, segmentation, pipeline); });
+	m.medianCpuMs = bodyfit_bench::medianCpuMs(ctx.repeats, [&] { bodyfit::fitSegmented(mesh, segmentation, pipeline); });
 	bodyfit::FitQualityOptions q;
 	q.computeAirGap = false;
 	q.computeIoU = false;

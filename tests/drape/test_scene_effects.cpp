@@ -1,8 +1,7 @@
 // Effects: each listed effect changes the cloth in the expected direction; an unlisted effect is never built
 // (no per-step object, zero work counters, Bullet's own aerodynamics and gravity left off).
 #include "bodyfit/drape/simulation.h"
-#include "support/mesh_shapes.h"
-#include "support/paths.h"
+#include "drape/sphere_scene.h"
 
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 
@@ -15,37 +14,12 @@
 #include <catch2/catch.hpp>
 
 using namespace bodyfit::drape;
+using bodyfit_test::patchScene;
+using bodyfit_test::sphereBody;
 using nlohmann::json;
 
 namespace
 {
-
-/// A sphere body of radius 0.25 m centred at (0, 1, 0): mesh (slightly inside the sphere: its vertices lie on it)
-/// and the one-ellipsoid "fit".
-bodyfit::drape::BodyData sphereBody()
-{
-	BodyData b;
-	b.mesh = bodyfit_test::starShape([](const Eigen::Vector3d&) { return 0.25; }, 32, 16, Eigen::Vector3d(0, 1, 0));
-	bodyfit::Ellipsoid e;
-	e.center = Eigen::Vector3d(0, 1, 0);
-	e.radii = Eigen::Vector3d::Constant(0.25);
-	b.ellipsoids = {e};
-	b.meshPath = "<sphere>";
-	b.ellipsoidSource = "<sphere>";
-	return b;
-}
-
-/// A 0.8 m patch of 17 x 17 nodes at height `y`, offset in x by `dx`, over the sphere body, with `effects`.
-Scene patchScene(const json& effects, double y = 1.35, double dx = 0.0)
-{
-	json j = {{"body", {{"mesh", bodyfit_test::dataPath("tetra.obj")}, {"fit", json::object()}}},
-			  {"collider", {{"kind", "ellipsoids"}}},
-			  {"garment",
-			   {{"type", "patch"}, {"size_m", {0.8, 0.8}}, {"resolution", {17, 17}}, {"center", {dx, y, 0.0}}}},
-			  {"solver", {{"dt", 1.0 / 120.0}, {"iterations", 8}}},
-			  {"effects", effects}};
-	return parseScene(j, "/virtual/effects.json");
-}
 
 Eigen::MatrixX3d run(DrapeSimulation& sim, int steps)
 {

@@ -175,7 +175,7 @@ TEST_CASE("every bad value is an error naming the file and the key path", "[scen
 		{"/collider/sdf_voxel_m", "fine", "collider.sdf_voxel_m: expected a number"},
 		{"/collider/shape_margin_m", 1, "collider.shape_margin_m: value 1 is outside"},
 		{"/collider/contact_hardness", 0, "collider.contact_hardness: value 0 is outside"},
-		{"/garment/type", "dress", "garment.type: 'dress' is not one of patch, skirt, tights, tube"},
+		{"/garment/type", "dress", "garment.type: 'dress' is not one of patch, bullet_patch, skirt, tights, tube"},
 		{"/garment/size_m", json::array({1.0}), "garment.size_m: expected an array of 2 numbers"},
 		{"/garment/size_m", json::array({1.0, -1.0}), "garment.size_m[1]: value -1 is outside"},
 		{"/garment/resolution", json::array({1, 5}), "garment.resolution[0]: value 1 is outside [2, 512]"},

@@ -4,9 +4,12 @@
 #include "bodyfit/fitting/mesh_io.h"
 
 #include <BulletSoftBody/btSoftBody.h>
+#include <BulletSoftBody/btSoftBodyHelpers.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -99,6 +102,12 @@ GarmentMesh buildGarmentMesh(const GarmentSpec& spec)
 	{
 	case GarmentType::Patch:
 		return makePatch(spec);
+	case GarmentType::BulletPatch:
+	{
+		btSoftBodyWorldInfo info;
+		const std::unique_ptr<btSoftBody> cloth(buildBulletPatch(info, spec, MaterialSpec{}, SolverSpec{}));
+		return garmentMeshOf(*cloth, spec.resolution.x(), spec.resolution.y());
+	}
 	case GarmentType::Tube:
 		return makeTube(spec);
 	case GarmentType::Skirt:
@@ -106,6 +115,72 @@ GarmentMesh buildGarmentMesh(const GarmentSpec& spec)
 		return loadGarment(spec);
 	}
 	throw InvalidInputError("unknown garment type");
+}
+
+Eigen::Vector3d patchCenterAboveHead(const TriMesh& body, double drop)
+{
+	const double top = body.V.col(1).maxCoeff();
+	const double h = top - body.V.col(1).minCoeff();
+	Eigen::Vector2d c(0, 0);
+	int n = 0;
+	for (int i = 0; i < body.V.rows(); ++i)
+		if (body.V(i, 1) > top - 0.1 * h)
+		{
+			c += Eigen::Vector2d(body.V(i, 0), body.V(i, 2));
+			++n;
+		}
+	c /= double(std::max(1, n));
+	return Eigen::Vector3d(c.x(), top + drop, c.y());
+}
+
+btSoftBody* buildBulletPatch(btSoftBodyWorldInfo& worldInfo, const GarmentSpec& spec, const MaterialSpec& material,
+							 const SolverSpec& solver)
+{
+	const btScalar cx = btScalar(spec.center.x()), y = btScalar(spec.center.y()), cz = btScalar(spec.center.z());
+	const btScalar hx = btScalar(spec.size.x() / 2), hz = btScalar(spec.size.y() / 2);
+	btSoftBody* psb = btSoftBodyHelpers::CreatePatch(worldInfo, btVector3(cx - hx, y, cz - hz),
+													 btVector3(cx + hx, y, cz - hz), btVector3(cx - hx, y, cz + hz),
+													 btVector3(cx + hx, y, cz + hz), spec.resolution.x(),
+													 spec.resolution.y(), 0, true);
+	psb->getCollisionShape()->setMargin(btScalar(material.margin));
+	psb->m_cfg.piterations = solver.iterations;
+	psb->m_cfg.kDP = btScalar(material.damping);
+	psb->m_materials[0]->m_kLST = btScalar(material.stretch);
+	psb->setTotalMass(btScalar(material.mass));
+	return psb;
+}
+
+GarmentMesh garmentMeshOf(const btSoftBody& softBody, int resX, int resZ)
+{
+	GarmentMesh g;
+	g.resX = resX;
+	g.resZ = resZ;
+	g.mesh.V.resize(softBody.m_nodes.size(), 3);
+	for (int i = 0; i < softBody.m_nodes.size(); ++i)
+	{
+		const btVector3& x = softBody.m_nodes[i].m_x;
+		g.mesh.V.row(i) << double(x.x()), double(x.y()), double(x.z());
+	}
+	g.mesh.F.resize(softBody.m_faces.size(), 3);
+	if (softBody.m_nodes.size() == 0)
+		return g;
+	const btSoftBody::Node* base = &softBody.m_nodes[0];
+	for (int f = 0; f < softBody.m_faces.size(); ++f)
+		for (int k = 0; k < 3; ++k)
+			g.mesh.F(f, k) = int(softBody.m_faces[f].m_n[k] - base);
+	return g;
+}
+
+btSoftBody* buildCloth(btSoftBodyWorldInfo& worldInfo, const Scene& scene, GarmentMesh& garment)
+{
+	if (scene.garment.type == GarmentType::BulletPatch)
+	{
+		btSoftBody* psb = buildBulletPatch(worldInfo, scene.garment, scene.material, scene.solver);
+		garment = garmentMeshOf(*psb, scene.garment.resolution.x(), scene.garment.resolution.y());
+		return psb;
+	}
+	garment = buildGarmentMesh(scene.garment);
+	return buildSoftBody(worldInfo, garment.mesh, scene.material, scene.solver);
 }
 
 btSoftBody* buildSoftBody(btSoftBodyWorldInfo& worldInfo, const TriMesh& mesh, const MaterialSpec& material,

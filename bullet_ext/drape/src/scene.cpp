@@ -275,7 +275,7 @@ BodySpec parseBody(ObjectReader r)
 ColliderSpec parseCollider(const json& j, ObjectReader& top)
 {
 	ColliderSpec c;
-	const std::vector<std::string> kinds = {"ellipsoids", "mesh-bvh", "convex-hull-compound", "none"};
+	const std::vector<std::string> kinds = {"ellipsoids", "mesh-bvh", "convex-hull-compound", "ellipsoids-sdf", "none"};
 	if (j.is_string())
 	{
 		const std::string s = top.string("collider", "", kinds);
@@ -295,10 +295,10 @@ ColliderSpec parseCollider(const json& j, ObjectReader& top)
 GarmentSpec parseGarment(ObjectReader r)
 {
 	GarmentSpec g;
-	const std::string type = r.requiredString("type", {"patch", "skirt", "tights", "tube"});
-	if (type == "patch")
+	const std::string type = r.requiredString("type", {"patch", "bullet_patch", "skirt", "tights", "tube"});
+	if (type == "patch" || type == "bullet_patch")
 	{
-		g.type = GarmentType::Patch;
+		g.type = type == "patch" ? GarmentType::Patch : GarmentType::BulletPatch;
 		g.size = r.vec2("size_m", g.size, kMinGarmentSize, 100.0, false);
 		g.resolution = r.ivec2("resolution", g.resolution, 2, 512);
 		for (int i = 0; i < 2; ++i)
@@ -486,7 +486,8 @@ void parseEffects(const json& list, const std::string& where, Scene& scene, cons
 		{
 			PinSpec p;
 			const std::string sel = r.requiredString("select", {"corners", "edge", "top", "indices"});
-			const bool patch = scene.garment.type == GarmentType::Patch;
+			const bool patch =
+				scene.garment.type == GarmentType::Patch || scene.garment.type == GarmentType::BulletPatch;
 			if ((sel == "corners" || sel == "edge") && !patch)
 				r.fail(r.keyPath("select"), "'" + sel + "' needs a patch garment");
 			if (sel == "corners")
@@ -534,6 +535,8 @@ const char* toString(ColliderKind kind)
 		return "mesh-bvh";
 	case ColliderKind::ConvexHullCompound:
 		return "convex-hull-compound";
+	case ColliderKind::EllipsoidsSdf:
+		return "ellipsoids-sdf";
 	case ColliderKind::None:
 		return "none";
 	}
@@ -542,11 +545,12 @@ const char* toString(ColliderKind kind)
 
 ColliderKind colliderKindFromString(const std::string& name)
 {
-	for (ColliderKind k :
-		 {ColliderKind::Ellipsoids, ColliderKind::MeshBvh, ColliderKind::ConvexHullCompound, ColliderKind::None})
+	for (ColliderKind k : {ColliderKind::Ellipsoids, ColliderKind::MeshBvh, ColliderKind::ConvexHullCompound,
+						   ColliderKind::EllipsoidsSdf, ColliderKind::None})
 		if (name == toString(k))
 			return k;
-	throw FormatError("collider kind '" + name + "' is not one of ellipsoids, mesh-bvh, convex-hull-compound, none");
+	throw FormatError("collider kind '" + name +
+					  "' is not one of ellipsoids, mesh-bvh, convex-hull-compound, ellipsoids-sdf, none");
 }
 
 const char* toString(GarmentType type)
@@ -555,6 +559,8 @@ const char* toString(GarmentType type)
 	{
 	case GarmentType::Patch:
 		return "patch";
+	case GarmentType::BulletPatch:
+		return "bullet_patch";
 	case GarmentType::Skirt:
 		return "skirt";
 	case GarmentType::Tights:

@@ -8,10 +8,15 @@
 #include "bodyfit/fitting/fit_pipeline.h"
 #include "bodyfit/fitting/inside_test.h"
 #include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/segmentation.h"
+#include "bodyfit/fitting/statistics.h"
+#include "bodyfit/bullet_ext/btTiming.h"
 
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 #include "bodyfit/bridge/btBodyFitToBullet.h"
+#include "bodyfit/bridge/btEigenConversion.h"
+#include "bodyfit/metrics/cloth_metrics.h"
 
 #include <BulletCollision/BroadphaseCollision/btDbvtBroadphase.h>
 #include <BulletCollision/CollisionDispatch/btCollisionDispatcher.h>
@@ -41,40 +46,22 @@ namespace
 
 using Clock = std::chrono::steady_clock;
 
-/// A node counts as inside an ellipsoid (metric nodes_inside_ellipsoids) when it is deeper than this (metres).
-constexpr double kInsideEllipsoidDepth = 1e-6;
-
-double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-btVector3 toBt(const Eigen::Vector3d& v) { return btVector3(btScalar(v.x()), btScalar(v.y()), btScalar(v.z())); }
-Eigen::Vector3d toEigen(const btVector3& v) { return Eigen::Vector3d(v.x(), v.y(), v.z()); }
-
-Eigen::Isometry3d toIsometry(const btTransform& t)
-{
-	Eigen::Isometry3d iso = Eigen::Isometry3d::Identity();
-	for (int r = 0; r < 3; ++r)
-		for (int c = 0; c < 3; ++c)
-			iso.linear()(r, c) = t.getBasis()[r][c];
-	iso.translation() = toEigen(t.getOrigin());
-	return iso;
-}
-
-/// The soft-rigid world, timing the collision-detection phase (soft-rigid contacts are generated there).
+/// The soft-rigid world, timing the collision-detection phase (soft-rigid contacts are generated there) in wall
+/// and thread CPU time.
 class TimedSoftRigidWorld : public btSoftRigidDynamicsWorld
 {
 public:
-	TimedSoftRigidWorld(btDispatcher* dispatcher, btBroadphaseInterface* broadphase, btConstraintSolver* solver,
-						btCollisionConfiguration* configuration, btSoftBodySolver* softSolver)
-		: btSoftRigidDynamicsWorld(dispatcher, broadphase, solver, configuration, softSolver)
-	{
-	}
+	using btSoftRigidDynamicsWorld::btSoftRigidDynamicsWorld;
 	void performDiscreteCollisionDetection() override
 	{
 		const Clock::time_point t0 = Clock::now();
+		const double c0 = btThreadCpuSeconds();
 		btSoftRigidDynamicsWorld::performDiscreteCollisionDetection();
-		collisionSeconds += secondsSince(t0);
+		collisionCpuSeconds += btThreadCpuSeconds() - c0;
+		collisionSeconds += btSecondsSince(t0);
 	}
 	double collisionSeconds = 0.0;
+	double collisionCpuSeconds = 0.0;
 };
 
 /// The scene's "fit" object as pipeline options. Thresholds are fractions of the body height, or metres with
@@ -217,8 +204,15 @@ struct DrapeSimulation::Impl
 	std::unique_ptr<btRigidBody> bodyObject;
 
 	std::optional<KeyframePath> path;
-	std::unique_ptr<MeshInsideTest> insideTest;
-	mutable std::unique_ptr<MeshDistanceGrid> distance;
+	std::unique_ptr<metrics::BodyReference> reference;
+
+	void buildWorld(const Scene& scene);
+	std::string buildMeshShape(const Scene& scene, const TriMesh& mesh);
+	std::string buildHullCompound(const Scene& scene, const BodyData& body);
+	std::string buildBodyShape(const Scene& scene, const BodyData& body);
+	void addBodyObject(const btTransform& pose0);
+	/// The body reference of the metrics at the pose of time t.
+	const metrics::BodyReference& referenceAt(double t) const;
 };
 
 btFloatRangeStatus checkFloatRange(const Scene& scene, const BodyData& body, const TriMesh& garment,
@@ -265,155 +259,189 @@ btFloatRangeStatus checkFloatRange(const Scene& scene, const BodyData& body, con
 	return status;
 }
 
+void DrapeSimulation::Impl::buildWorld(const Scene& scene)
+{
+	configuration = std::make_unique<btSoftBodyRigidBodyCollisionConfiguration>();
+	dispatcher = std::make_unique<btCollisionDispatcher>(configuration.get());
+	broadphase = std::make_unique<btDbvtBroadphase>();
+	constraintSolver = std::make_unique<btSequentialImpulseConstraintSolver>();
+	if (scene.collider.kind == ColliderKind::Ellipsoids)
+		softSolver = std::make_unique<btEllipsoidClothSoftBodySolver>();
+	else
+		softSolver = std::make_unique<btDefaultSoftBodySolver>();
+	world = std::make_unique<TimedSoftRigidWorld>(dispatcher.get(), broadphase.get(), constraintSolver.get(),
+												  configuration.get(), softSolver.get());
+	btSoftBodyWorldInfo& info = world->getWorldInfo();
+
+	// Gravity (soft gravity lives in btSoftBodyWorldInfo, the rigid one in the world).
+	const Eigen::Vector3d g = scene.effects.gravity ? scene.effects.gravity->acceleration : Eigen::Vector3d::Zero();
+	info.m_gravity = toBt(g);
+	world->setGravity(toBt(g));
+	if (scene.effects.aerodynamics)
+		info.air_density = btScalar(scene.effects.aerodynamics->airDensity);
+	info.m_sparsesdf.setDefaultVoxelsz(btScalar(scene.collider.sdfVoxel));
+	info.m_sparsesdf.Reset();
+}
+
+std::string DrapeSimulation::Impl::buildMeshShape(const Scene& scene, const TriMesh& m)
+{
+	triVertices.resize(std::size_t(m.V.rows()) * 3);
+	for (int i = 0; i < m.V.rows(); ++i)
+		for (int k = 0; k < 3; ++k)
+			triVertices[std::size_t(i) * 3 + k] = btScalar(m.V(i, k));
+	triIndices.resize(std::size_t(m.F.rows()) * 3);
+	for (int f = 0; f < m.F.rows(); ++f)
+		for (int k = 0; k < 3; ++k)
+			triIndices[std::size_t(f) * 3 + k] = m.F(f, k);
+	triArray = std::make_unique<btTriangleIndexVertexArray>(int(m.F.rows()), triIndices.data(), int(3 * sizeof(int)),
+															int(m.V.rows()), triVertices.data(),
+															int(3 * sizeof(btScalar)));
+	bodyShape = std::make_unique<btBvhTriangleMeshShape>(triArray.get(), true);
+	bodyShape->setMargin(btScalar(scene.collider.shapeMargin));
+	std::ostringstream desc;
+	desc << ": btBvhTriangleMeshShape " << m.F.rows() << " triangles, Bullet SDF_RS, sparse-SDF voxel "
+		 << scene.collider.sdfVoxel << " m, mesh margin " << scene.collider.shapeMargin
+		 << " m, triangle prism extrusion 0.06 m (Bullet constant), cloth margin " << scene.material.margin
+		 << " m, kKHR " << scene.collider.contactHardness;
+	return desc.str();
+}
+
+std::string DrapeSimulation::Impl::buildHullCompound(const Scene& scene, const BodyData& body)
+{
+	// One hull per ellipsoid: the body vertices whose smallest zeta is that ellipsoid's (i.e. the vertices
+	// "belonging" to it), reduced to their convex hull by btConvexHullShape::optimizeConvexHull.
+	std::vector<std::vector<btVector3>> clusters(body.ellipsoids.size());
+	for (int i = 0; i < body.mesh.V.rows(); ++i)
+	{
+		const Eigen::Vector3d p = body.mesh.V.row(i).transpose();
+		double bestZeta = std::numeric_limits<double>::infinity();
+		std::size_t best = 0;
+		for (std::size_t e = 0; e < body.ellipsoids.size(); ++e)
+		{
+			const double z = body.ellipsoids[e].zeta(p);
+			if (z < bestZeta)
+			{
+				bestZeta = z;
+				best = e;
+			}
+		}
+		clusters[best].push_back(toBt(p));
+	}
+	auto compound = std::make_unique<btCompoundShape>();
+	int hullVertices = 0;
+	for (const auto& c : clusters)
+	{
+		if (c.size() < 4)
+			continue;
+		auto hull = std::make_unique<btConvexHullShape>(&c[0].x(), int(c.size()), int(sizeof(btVector3)));
+		hull->optimizeConvexHull();
+		hull->setMargin(btScalar(scene.collider.shapeMargin));
+		hullVertices += hull->getNumPoints();
+		compound->addChildShape(btTransform::getIdentity(), hull.get());
+		childShapes.push_back(std::move(hull));
+	}
+	std::ostringstream desc;
+	desc << ": " << compound->getNumChildShapes() << " convex hulls (" << hullVertices
+		 << " hull vertices) of the body vertices nearest each ellipsoid, Bullet SDF_RS, sparse-SDF voxel "
+		 << scene.collider.sdfVoxel << " m, hull margin " << scene.collider.shapeMargin << " m, cloth margin "
+		 << scene.material.margin << " m, kKHR " << scene.collider.contactHardness;
+	bodyShape = std::move(compound);
+	return desc.str();
+}
+
+std::string DrapeSimulation::Impl::buildBodyShape(const Scene& scene, const BodyData& body)
+{
+	std::ostringstream desc;
+	desc << toString(scene.collider.kind);
+	switch (scene.collider.kind)
+	{
+	case ColliderKind::Ellipsoids:
+		ellipsoidCompound = createEllipsoidCompound(body.ellipsoids);
+		desc << ": " << body.ellipsoids.size() << " ellipsoids, skin offset " << scene.collider.skinOffset * 1000
+			 << " mm, Bullet's soft response to the body disabled";
+		break;
+	case ColliderKind::EllipsoidsSdf:
+	{
+		CompoundOptions options;
+		options.childMargin = scene.collider.shapeMargin;
+		ellipsoidCompound = createEllipsoidCompound(body.ellipsoids, options);
+		desc << ": btEllipsoidCompoundShape of " << body.ellipsoids.size()
+			 << " ellipsoids, Bullet SDF_RS (sparse SDF per child), sparse-SDF voxel " << scene.collider.sdfVoxel
+			 << " m, child margin " << ellipsoidCompound->getChildMargin() << " m, cloth margin "
+			 << scene.material.margin << " m, kKHR " << scene.collider.contactHardness;
+		break;
+	}
+	case ColliderKind::MeshBvh:
+		desc << buildMeshShape(scene, body.mesh);
+		break;
+	case ColliderKind::ConvexHullCompound:
+		desc << buildHullCompound(scene, body);
+		break;
+	case ColliderKind::None:
+		desc << ": no body collider";
+		break;
+	}
+	return desc.str();
+}
+
+void DrapeSimulation::Impl::addBodyObject(const btTransform& pose0)
+{
+	btCollisionShape* shape = ellipsoidCompound ? static_cast<btCollisionShape*>(ellipsoidCompound.get())
+												: bodyShape.get();
+	if (!shape)
+		return;
+	motionState = std::make_unique<btDefaultMotionState>(pose0);
+	btRigidBody::btRigidBodyConstructionInfo ci(0, motionState.get(), shape);
+	bodyObject = std::make_unique<btRigidBody>(ci);
+	if (path)
+	{
+		bodyObject->setCollisionFlags(bodyObject->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
+		bodyObject->setActivationState(DISABLE_DEACTIVATION);
+	}
+	bodyObject->setFriction(1); // the cloth's kDF carries the scene's coefficient on Bullet's path
+	world->addRigidBody(bodyObject.get());
+}
+
+const metrics::BodyReference& DrapeSimulation::Impl::referenceAt(double t) const
+{
+	reference->setPose(path ? path->at(t) : btTransform::getIdentity());
+	return *reference;
+}
+
 DrapeSimulation::DrapeSimulation(const Scene& scene, const BodyData& body, bool refuseFarFromOrigin)
 	: impl_(std::make_unique<Impl>()), scene_(scene), body_(body)
 {
 	Impl& im = *impl_;
 	const ColliderKind kind = scene_.collider.kind;
-	if ((kind == ColliderKind::Ellipsoids || kind == ColliderKind::ConvexHullCompound) && body_.ellipsoids.empty())
+	if ((kind == ColliderKind::Ellipsoids || kind == ColliderKind::ConvexHullCompound ||
+		 kind == ColliderKind::EllipsoidsSdf) &&
+		body_.ellipsoids.empty())
 		throw InvalidInputError(scene_.path + ": collider '" + toString(kind) + "' needs ellipsoids for the body");
-
-	im.configuration = std::make_unique<btSoftBodyRigidBodyCollisionConfiguration>();
-	im.dispatcher = std::make_unique<btCollisionDispatcher>(im.configuration.get());
-	im.broadphase = std::make_unique<btDbvtBroadphase>();
-	im.constraintSolver = std::make_unique<btSequentialImpulseConstraintSolver>();
-	if (kind == ColliderKind::Ellipsoids)
-		im.softSolver = std::make_unique<btEllipsoidClothSoftBodySolver>();
-	else
-		im.softSolver = std::make_unique<btDefaultSoftBodySolver>();
-	im.world = std::make_unique<TimedSoftRigidWorld>(im.dispatcher.get(), im.broadphase.get(),
-													 im.constraintSolver.get(), im.configuration.get(),
-													 im.softSolver.get());
-	btSoftBodyWorldInfo& info = im.world->getWorldInfo();
-
-	// Gravity (soft gravity lives in btSoftBodyWorldInfo, the rigid one in the world).
-	const Eigen::Vector3d g = scene_.effects.gravity ? scene_.effects.gravity->acceleration : Eigen::Vector3d::Zero();
-	info.m_gravity = toBt(g);
-	im.world->setGravity(toBt(g));
-	if (scene_.effects.aerodynamics)
-		info.air_density = btScalar(scene_.effects.aerodynamics->airDensity);
-	info.m_sparsesdf.setDefaultVoxelsz(btScalar(scene_.collider.sdfVoxel));
-	info.m_sparsesdf.Reset();
+	im.buildWorld(scene_);
 
 	// Body motion path (also used for the pose in metrics when the collider is `none`).
 	const Eigen::Vector3d lo = body_.mesh.V.colwise().minCoeff().transpose();
 	const Eigen::Vector3d hi = body_.mesh.V.colwise().maxCoeff().transpose();
 	if (scene_.effects.bodyMotion)
 		im.path.emplace(*scene_.effects.bodyMotion, 0.5 * (lo + hi));
-	const btTransform pose0 = im.path ? im.path->at(0.0) : btTransform::getIdentity();
+	colliderDescription_ = im.buildBodyShape(scene_, body_);
+	im.addBodyObject(im.path ? im.path->at(0.0) : btTransform::getIdentity());
 
-	// Body collision object.
-	std::ostringstream desc;
-	desc << toString(kind);
-	const double margin = scene_.collider.shapeMargin;
-	switch (kind)
-	{
-	case ColliderKind::Ellipsoids:
-	{
-		im.ellipsoidCompound = createEllipsoidCompound(body_.ellipsoids);
-		desc << ": " << body_.ellipsoids.size() << " ellipsoids, skin offset " << scene_.collider.skinOffset * 1000
-			 << " mm, Bullet's soft response to the body disabled";
-		break;
-	}
-	case ColliderKind::MeshBvh:
-	{
-		const TriMesh& m = body_.mesh;
-		im.triVertices.resize(std::size_t(m.V.rows()) * 3);
-		for (int i = 0; i < m.V.rows(); ++i)
-			for (int k = 0; k < 3; ++k)
-				im.triVertices[std::size_t(i) * 3 + k] = btScalar(m.V(i, k));
-		im.triIndices.resize(std::size_t(m.F.rows()) * 3);
-		for (int f = 0; f < m.F.rows(); ++f)
-			for (int k = 0; k < 3; ++k)
-				im.triIndices[std::size_t(f) * 3 + k] = m.F(f, k);
-		im.triArray = std::make_unique<btTriangleIndexVertexArray>(int(m.F.rows()), im.triIndices.data(),
-																  int(3 * sizeof(int)), int(m.V.rows()),
-																  im.triVertices.data(), int(3 * sizeof(btScalar)));
-		im.bodyShape = std::make_unique<btBvhTriangleMeshShape>(im.triArray.get(), true);
-		im.bodyShape->setMargin(btScalar(margin));
-		desc << ": btBvhTriangleMeshShape " << m.F.rows() << " triangles, Bullet SDF_RS, sparse-SDF voxel "
-			 << scene_.collider.sdfVoxel << " m, mesh margin " << margin << " m, triangle prism extrusion 0.06 m "
-			 << "(Bullet constant), cloth margin " << scene_.material.margin << " m, kKHR "
-			 << scene_.collider.contactHardness;
-		break;
-	}
-	case ColliderKind::ConvexHullCompound:
-	{
-		// One hull per ellipsoid: the body vertices whose smallest zeta is that ellipsoid's (i.e. the vertices
-		// "belonging" to it), reduced to their convex hull by btConvexHullShape::optimizeConvexHull.
-		const int ne = int(body_.ellipsoids.size());
-		std::vector<std::vector<btVector3>> clusters(static_cast<std::size_t>(ne));
-		for (int i = 0; i < body_.mesh.V.rows(); ++i)
-		{
-			const Eigen::Vector3d p = body_.mesh.V.row(i).transpose();
-			int best = 0;
-			double bestZeta = std::numeric_limits<double>::max();
-			for (int e = 0; e < ne; ++e)
-			{
-				const double z = body_.ellipsoids[e].zeta(p);
-				if (z < bestZeta)
-				{
-					bestZeta = z;
-					best = e;
-				}
-			}
-			clusters[best].push_back(toBt(p));
-		}
-		auto compound = std::make_unique<btCompoundShape>();
-		int hullVertices = 0;
-		for (const auto& c : clusters)
-		{
-			if (c.size() < 4)
-				continue;
-			auto hull = std::make_unique<btConvexHullShape>(&c[0].x(), int(c.size()), int(sizeof(btVector3)));
-			hull->optimizeConvexHull();
-			hull->setMargin(btScalar(margin));
-			hullVertices += hull->getNumPoints();
-			compound->addChildShape(btTransform::getIdentity(), hull.get());
-			im.childShapes.push_back(std::move(hull));
-		}
-		desc << ": " << compound->getNumChildShapes() << " convex hulls (" << hullVertices
-			 << " hull vertices) of the body vertices nearest each ellipsoid, Bullet SDF_RS, sparse-SDF voxel "
-			 << scene_.collider.sdfVoxel << " m, hull margin " << margin << " m, cloth margin "
-			 << scene_.material.margin << " m, kKHR " << scene_.collider.contactHardness;
-		im.bodyShape = std::move(compound);
-		break;
-	}
-	case ColliderKind::None:
-		desc << ": no body collider";
-		break;
-	}
-	btCollisionShape* shape = im.ellipsoidCompound ? static_cast<btCollisionShape*>(im.ellipsoidCompound.get())
-												   : im.bodyShape.get();
-	if (shape)
-	{
-		im.motionState = std::make_unique<btDefaultMotionState>(pose0);
-		btRigidBody::btRigidBodyConstructionInfo ci(0, im.motionState.get(), shape);
-		im.bodyObject = std::make_unique<btRigidBody>(ci);
-		if (im.path)
-		{
-			im.bodyObject->setCollisionFlags(im.bodyObject->getCollisionFlags() |
-											 btCollisionObject::CF_KINEMATIC_OBJECT);
-			im.bodyObject->setActivationState(DISABLE_DEACTIVATION);
-		}
-		im.bodyObject->setFriction(1); // the cloth's kDF carries the scene's coefficient on Bullet's path
-		im.world->addRigidBody(im.bodyObject.get());
-	}
+	buildCloth();
+	checkFarFromOrigin(refuseFarFromOrigin);
+	if (kind == ColliderKind::Ellipsoids)
+		installCollider(refuseFarFromOrigin);
+	buildEffects();
+	im.reference = std::make_unique<metrics::BodyReference>(body_.mesh, body_.ellipsoids);
+}
 
-	// Cloth.
-	garment_ = buildGarmentMesh(scene_.garment);
-	{
-		std::string message;
-		const btFloatRangeStatus range = checkFloatRange(scene_, body_, garment_.mesh, &message);
-		if (range == BT_FLOAT_RANGE_REFUSE && refuseFarFromOrigin)
-			throw InvalidInputError(scene_.path + ": " + message);
-		if (range != BT_FLOAT_RANGE_OK)
-			warnings_.push_back(message);
-	}
-	cloth_ = buildSoftBody(info, garment_.mesh, scene_.material, scene_.solver);
+void DrapeSimulation::buildCloth()
+{
+	btSoftBodyWorldInfo& info = impl_->world->getWorldInfo();
+	cloth_ = drape::buildCloth(info, scene_, garment_);
 	cloth_->m_cfg.kKHR = btScalar(scene_.collider.contactHardness);
 	cloth_->m_cfg.kCHR = btScalar(scene_.collider.contactHardness);
-	if (scene_.effects.friction && kind != ColliderKind::Ellipsoids)
+	if (scene_.effects.friction && scene_.collider.kind != ColliderKind::Ellipsoids)
 		cloth_->m_cfg.kDF = btScalar(scene_.effects.friction->coefficient);
 	if (scene_.effects.aerodynamics && !scene_.effects.wind)
 	{
@@ -421,31 +449,44 @@ DrapeSimulation::DrapeSimulation(const Scene& scene, const BodyData& body, bool 
 		cloth_->m_cfg.kLF = btScalar(scene_.effects.aerodynamics->lift);
 		cloth_->m_cfg.kDG = btScalar(scene_.effects.aerodynamics->drag);
 	}
-	im.world->addSoftBody(cloth_);
+	impl_->world->addSoftBody(cloth_);
+}
 
-	if (kind == ColliderKind::Ellipsoids)
+void DrapeSimulation::installCollider(bool refuseFarFromOrigin)
+{
+	btEllipsoidClothCollider::Config cfg;
+	cfg.m_skinOffset = btScalar(scene_.collider.skinOffset);
+	cfg.m_friction = btScalar(scene_.effects.friction ? scene_.effects.friction->coefficient : 0.0);
+	const char* why = nullptr;
+	btEllipsoidClothSoftBodySolver* solver = static_cast<btEllipsoidClothSoftBodySolver*>(impl_->softSolver.get());
+	collider_ = solver->installCollider(impl_->world.get(), impl_->bodyObject.get(), cfg, &why);
+	if (!collider_ && !refuseFarFromOrigin)
 	{
-		btEllipsoidClothCollider::Config cfg;
-		cfg.m_skinOffset = btScalar(scene_.collider.skinOffset);
-		cfg.m_friction = btScalar(scene_.effects.friction ? scene_.effects.friction->coefficient : 0.0);
-		const char* why = nullptr;
-		btEllipsoidClothSoftBodySolver* solver = static_cast<btEllipsoidClothSoftBodySolver*>(im.softSolver.get());
-		collider_ = solver->installCollider(im.world.get(), im.bodyObject.get(), cfg, &why);
-		if (!collider_ && !refuseFarFromOrigin)
-		{
-			// Measuring past the limit on purpose: install with a skin the check accepts, then restore the skin.
-			btEllipsoidClothCollider::Config loose = cfg;
-			loose.m_skinOffset = btScalar(1); // the largest skin Config validation accepts: resolved up to ~2,000 km
-			collider_ = solver->installCollider(im.world.get(), im.bodyObject.get(), loose, &why);
-			if (collider_)
-				collider_->setConfig(cfg);
-		}
-		if (!collider_)
-			throw InvalidInputError(std::string("cannot install the ellipsoid cloth collider: ") +
-									(why ? why : "unknown reason"));
+		// Measuring past the limit on purpose: install with a skin the check accepts, then restore the skin.
+		btEllipsoidClothCollider::Config loose = cfg;
+		loose.m_skinOffset = btScalar(1); // the largest skin Config validation accepts: resolved up to ~2,000 km
+		collider_ = solver->installCollider(impl_->world.get(), impl_->bodyObject.get(), loose, &why);
+		if (collider_)
+			collider_->setConfig(cfg);
 	}
-	colliderDescription_ = desc.str();
+	if (!collider_)
+		throw InvalidInputError(std::string("cannot install the ellipsoid cloth collider: ") +
+								(why ? why : "unknown reason"));
+}
 
+void DrapeSimulation::checkFarFromOrigin(bool refuseFarFromOrigin)
+{
+	std::string message;
+	const btFloatRangeStatus range = checkFloatRange(scene_, body_, garment_.mesh, &message);
+	if (range == BT_FLOAT_RANGE_REFUSE && refuseFarFromOrigin)
+		throw InvalidInputError(scene_.path + ": " + message);
+	if (range != BT_FLOAT_RANGE_OK)
+		warnings_.push_back(message);
+}
+
+void DrapeSimulation::buildEffects()
+{
+	Impl& im = *impl_;
 	// Per-substep effects, only those listed (stepping order: body pose, pins, forces, self collision).
 	if (scene_.effects.bodyMotion && im.bodyObject)
 		effects_.push_back(std::make_unique<BodyMotionEffect>(*im.path, im.bodyObject.get(), counters_));
@@ -462,8 +503,6 @@ DrapeSimulation::DrapeSimulation(const Scene& scene, const BodyData& body, bool 
 														counters_));
 	if (scene_.effects.selfCollision)
 		effects_.push_back(std::make_unique<SelfCollisionEffect>(*scene_.effects.selfCollision, cloth_, counters_));
-
-	im.insideTest = std::make_unique<MeshInsideTest>(body_.mesh);
 }
 
 DrapeSimulation::~DrapeSimulation()
@@ -499,9 +538,11 @@ StepStats DrapeSimulation::step()
 	StepStats stats;
 	const double dt = scene_.solver.dt / scene_.solver.substeps;
 	im.world->collisionSeconds = 0.0;
+	im.world->collisionCpuSeconds = 0.0;
 	if (collider_)
 		collider_->resetStats();
 	const Clock::time_point t0 = Clock::now();
+	const double c0 = btThreadCpuSeconds();
 	for (int s = 0; s < scene_.solver.substeps; ++s)
 	{
 		for (const auto& e : effects_)
@@ -509,17 +550,25 @@ StepStats DrapeSimulation::step()
 		im.world->stepSimulation(btScalar(dt), 0, btScalar(dt));
 		time_ += dt;
 	}
-	stats.seconds = secondsSince(t0);
+	stats.cpuSeconds = btThreadCpuSeconds() - c0;
+	stats.seconds = btSecondsSince(t0);
 	stats.collisionSeconds = im.world->collisionSeconds;
+	stats.collisionCpuSeconds = im.world->collisionCpuSeconds;
 	if (collider_)
-		stats.collisionSeconds += collider_->getAccumulatedStats().m_collisionSeconds;
+	{
+		const btEllipsoidClothStats& cs = collider_->getAccumulatedStats();
+		stats.colliderSeconds = cs.m_collisionSeconds;
+		stats.colliderCpuSeconds = cs.m_collisionCpuSeconds;
+		stats.collisionSeconds += cs.m_collisionSeconds;
+		stats.collisionCpuSeconds += cs.m_collisionCpuSeconds;
+	}
 	++steps_;
 	return stats;
 }
 
 Eigen::Isometry3d DrapeSimulation::bodyPose() const
 {
-	return impl_->path ? toIsometry(impl_->path->at(time_)) : Eigen::Isometry3d::Identity();
+	return impl_->path ? toEigen(impl_->path->at(time_)) : Eigen::Isometry3d::Identity();
 }
 
 TriMesh DrapeSimulation::clothMesh() const
@@ -555,165 +604,74 @@ std::vector<Ellipsoid> DrapeSimulation::ellipsoidsWorld() const
 
 ClothSample DrapeSimulation::sample() const
 {
-	ClothSample s;
-	const Eigen::Isometry3d toBody = bodyPose().inverse();
-	Eigen::MatrixX3d local(cloth_->m_nodes.size(), 3);
-	int finite = 0;
-	for (int i = 0; i < cloth_->m_nodes.size(); ++i)
+	return metrics::measurePenetration(*cloth_, impl_->referenceAt(time_));
+}
+
+metrics::ContactOptions DrapeSimulation::contactOptions() const
+{
+	metrics::ContactOptions o;
+	switch (scene_.collider.kind)
 	{
-		const btSoftBody::Node& n = cloth_->m_nodes[i];
-		const Eigen::Vector3d x = toEigen(n.m_x);
-		if (!x.allFinite() || !toEigen(n.m_v).allFinite())
-		{
-			++s.nanNodes;
-			continue;
-		}
-		local.row(finite++) = (toBody * x).transpose();
+	case ColliderKind::Ellipsoids:
+		o.rule = metrics::ContactRule::NearEllipsoids;
+		o.distance = scene_.collider.skinOffset + 0.003;
+		break;
+	case ColliderKind::None:
+		o.rule = metrics::ContactRule::None;
+		break;
+	default:
+		o.rule = metrics::ContactRule::RigidContacts;
+		break;
 	}
-	local.conservativeResize(finite, 3);
-	s.insideBody = impl_->insideTest->countInside(local);
-	s.minZeta = std::numeric_limits<double>::infinity();
-	if (!body_.ellipsoids.empty())
-	{
-		s.insideEllipsoids = 0;
-		for (int i = 0; i < local.rows(); ++i)
-		{
-			double z = std::numeric_limits<double>::infinity();
-			double depth = 0.0;
-			for (const Ellipsoid& e : body_.ellipsoids)
-			{
-				const double ze = e.zeta(local.row(i).transpose());
-				z = std::min(z, ze);
-				if (ze < 1.0)
-					depth = std::max(depth, -closestSurfacePoint(e, local.row(i).transpose()).signedDistance);
-			}
-			s.minZeta = std::min(s.minZeta, z);
-			s.maxEllipsoidDepth = std::max(s.maxEllipsoidDepth, depth);
-			// Inside = deeper than float rounding can explain: the node positions are float coordinates about 1 m
-			// from the origin (ulp 6e-8 to 1.2e-7 m), checked here in double. A relative zeta tolerance would not do:
-			// on the 3 mm thin ellipsoids of a fit, one ulp is already a zeta error of 4e-5.
-			if (depth > kInsideEllipsoidDepth)
-				++s.insideEllipsoids;
-		}
-	}
-	return s;
+	return o;
 }
 
 std::vector<int> DrapeSimulation::contactNodes() const
 {
-	std::vector<int> nodes;
-	const ColliderKind kind = scene_.collider.kind;
-	if (kind == ColliderKind::None)
-		return nodes;
-	if (kind == ColliderKind::Ellipsoids)
-	{
-		const double threshold = scene_.collider.skinOffset + 0.003;
-		const Eigen::Isometry3d toBody = bodyPose().inverse();
-		for (int i = 0; i < cloth_->m_nodes.size(); ++i)
-		{
-			const Eigen::Vector3d p = toBody * toEigen(cloth_->m_nodes[i].m_x);
-			if (!p.allFinite())
-				continue;
-			double best = std::numeric_limits<double>::infinity();
-			for (const Ellipsoid& e : body_.ellipsoids)
-			{
-				const Eigen::AlignedBox3d box = e.aabb();
-				if (box.exteriorDistance(p) > threshold)
-					continue;
-				best = std::min(best, closestSurfacePoint(e, p).signedDistance);
-			}
-			if (best <= threshold)
-				nodes.push_back(i);
-		}
-		return nodes;
-	}
-	std::vector<char> flag(std::size_t(cloth_->m_nodes.size()), 0);
-	const btSoftBody::Node* base = &cloth_->m_nodes[0];
-	for (int c = 0; c < cloth_->m_rcontacts.size(); ++c)
-		flag[std::size_t(cloth_->m_rcontacts[c].m_node - base)] = 1;
-	for (std::size_t i = 0; i < flag.size(); ++i)
-		if (flag[i])
-			nodes.push_back(int(i));
-	return nodes;
+	return metrics::contactNodes(*cloth_, impl_->referenceAt(time_), contactOptions());
 }
 
 std::vector<double> DrapeSimulation::skinDistances(const std::vector<int>& nodes) const
 {
-	if (!impl_->distance)
-		impl_->distance = std::make_unique<MeshDistanceGrid>(body_.mesh);
-	const Eigen::Isometry3d toBody = bodyPose().inverse();
-	std::vector<double> d;
-	d.reserve(nodes.size());
-	for (int i : nodes)
-	{
-		const Eigen::Vector3d p = toBody * toEigen(cloth_->m_nodes[i].m_x);
-		if (!p.allFinite())
-			continue;
-		const double u = impl_->distance->distance(p);
-		d.push_back(impl_->insideTest->isInside(p) ? -u : u);
-	}
-	return d;
+	return metrics::skinDistances(*cloth_, impl_->referenceAt(time_), nodes);
+}
+
+metrics::ContactMetrics DrapeSimulation::contacts() const
+{
+	return metrics::measureContacts(*cloth_, impl_->referenceAt(time_), contactOptions());
 }
 
 int DrapeSimulation::sdfCells() const { return impl_->world->getWorldInfo().m_sparsesdf.ncells; }
 
 namespace
 {
-double median(std::vector<double> v)
-{
-	if (v.empty())
-		return 0.0;
-	std::sort(v.begin(), v.end());
-	const std::size_t n = v.size();
-	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-double mean(const std::vector<double>& v)
-{
-	double s = 0.0;
-	for (double x : v)
-		s += x;
-	return v.empty() ? 0.0 : s / double(v.size());
-}
-nlohmann::json finiteOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
-} // namespace
 
-nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::function<void(int, int, const StepStats&)>& progress,
-							 const std::function<void(int)>& afterStep)
+nlohmann::json finiteOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+/// Extremes of the cloth samples over a run.
+struct SampleExtremes
+{
+	int maxInside = 0;
+	int maxInsideEllipsoids = 0;
+	int maxNan = 0;
+	double minZeta = std::numeric_limits<double>::infinity();
+	double maxDepth = 0.0;
+
+	void add(const ClothSample& s)
+	{
+		maxInside = std::max(maxInside, s.insideBody);
+		maxInsideEllipsoids = std::max(maxInsideEllipsoids, s.insideEllipsoids);
+		maxNan = std::max(maxNan, s.nanNodes);
+		minZeta = std::min(minZeta, s.minZeta);
+		maxDepth = std::max(maxDepth, s.maxEllipsoidDepth);
+	}
+};
+
+/// The run's description, cost and final-state fields of the metrics JSON (not the cloth metrics).
+nlohmann::json runJson(const DrapeSimulation& sim, int steps, const std::vector<double>& stepMs,
+					   const std::vector<double>& collisionMs)
 {
 	const Scene& scene = sim.scene();
-	const ClothSample start = sim.sample();
-	std::vector<double> stepMs, collisionMs;
-	stepMs.reserve(std::size_t(steps));
-	collisionMs.reserve(std::size_t(steps));
-	int maxInside = 0, maxInsideEllipsoids = start.insideEllipsoids < 0 ? -1 : 0, maxNan = 0;
-	double minZetaOverTime = std::numeric_limits<double>::infinity(), maxDepth = 0.0;
-	ClothSample last = start;
-	for (int k = 1; k <= steps; ++k)
-	{
-		const StepStats st = sim.step();
-		stepMs.push_back(st.seconds * 1e3);
-		collisionMs.push_back(st.collisionSeconds * 1e3);
-		if (k % scene.sampleEvery == 0 || k == steps)
-		{
-			last = sim.sample();
-			maxInside = std::max(maxInside, last.insideBody);
-			maxInsideEllipsoids = std::max(maxInsideEllipsoids, last.insideEllipsoids);
-			maxNan = std::max(maxNan, last.nanNodes);
-			minZetaOverTime = std::min(minZetaOverTime, last.minZeta);
-			maxDepth = std::max(maxDepth, last.maxEllipsoidDepth);
-		}
-		if (afterStep)
-			afterStep(k);
-		if (progress)
-			progress(k, steps, st);
-	}
-	const std::vector<int> contacts = sim.contactNodes();
-	const std::vector<double> gaps = sim.skinDistances(contacts);
-
-	const TriMesh cloth = sim.clothMesh();
-	double maxSpeed = 0.0;
-	for (int i = 0; i < sim.cloth()->m_nodes.size(); ++i)
-		maxSpeed = std::max(maxSpeed, double(sim.cloth()->m_nodes[i].m_v.length()));
 	nlohmann::json j;
 	j["scene"] = scene.name;
 	j["scene_file"] = scene.path;
@@ -730,7 +688,6 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 	j["substeps"] = scene.solver.substeps;
 	j["iterations"] = scene.solver.iterations;
 	j["simulated_s"] = sim.time();
-	j["nodes"] = sim.nodeCount();
 	j["links"] = sim.cloth()->m_links.size();
 	j["faces"] = sim.cloth()->m_faces.size();
 	j["ms_per_step"] = mean(stepMs);
@@ -739,26 +696,14 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 	j["collision_ms_per_step_median"] = median(collisionMs);
 	j["ns_per_node_step"] = mean(stepMs) * 1e6 / std::max(1, sim.nodeCount());
 	j["collision_ns_per_node_step"] = mean(collisionMs) * 1e6 / std::max(1, sim.nodeCount());
-	j["nodes_inside_body_start"] = start.insideBody;
-	j["nodes_inside_body"] = last.insideBody;
-	j["max_nodes_inside_body"] = maxInside;
 	j["inside_sample_every_steps"] = scene.sampleEvery;
-	j["nodes_inside_ellipsoids"] = last.insideEllipsoids < 0 ? nlohmann::json(nullptr) : nlohmann::json(last.insideEllipsoids);
-	j["max_nodes_inside_ellipsoids"] =
-		maxInsideEllipsoids < 0 ? nlohmann::json(nullptr) : nlohmann::json(maxInsideEllipsoids);
-	j["min_zeta"] = finiteOrNull(last.minZeta);
-	j["min_zeta_over_time"] = finiteOrNull(minZetaOverTime);
-	// Deepest node inside an ellipsoid over the samples: float32 node positions put a node on the surface only to
-	// ~1e-7 m, which for a 3 mm thin axis is zeta 1 - 7e-5; this distance is the unit-free check.
-	j["max_ellipsoid_penetration_m"] = start.insideEllipsoids < 0 ? nlohmann::json(nullptr) : nlohmann::json(maxDepth);
-	j["contact_nodes"] = contacts.size();
-	j["mean_contact_gap_m"] = gaps.empty() ? nlohmann::json(nullptr) : nlohmann::json(mean(gaps));
-	j["median_contact_gap_m"] = gaps.empty() ? nlohmann::json(nullptr) : nlohmann::json(median(gaps));
-	j["nan_nodes"] = last.nanNodes;
-	j["max_nan_nodes"] = maxNan;
+	double maxSpeed = 0.0;
+	for (int i = 0; i < sim.cloth()->m_nodes.size(); ++i)
+		maxSpeed = std::max(maxSpeed, double(sim.cloth()->m_nodes[i].m_v.length()));
 	j["max_node_speed_mps"] = finiteOrNull(maxSpeed);
 	j["sdf_cells"] = sim.sdfCells();
 	j["warnings"] = sim.warnings();
+	const TriMesh cloth = sim.clothMesh();
 	j["cloth_bbox_min"] = {cloth.V.col(0).minCoeff(), cloth.V.col(1).minCoeff(), cloth.V.col(2).minCoeff()};
 	j["cloth_bbox_max"] = {cloth.V.col(0).maxCoeff(), cloth.V.col(1).maxCoeff(), cloth.V.col(2).maxCoeff()};
 	if (sim.body().fitSeconds > 0.0)
@@ -775,6 +720,46 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 						{"self_collision_impulses", c.selfCollisionImpulses},
 						{"pin_substeps", c.pinSubsteps},
 						{"body_motion_substeps", c.bodyMotionSubsteps}};
+	return j;
+}
+
+} // namespace
+
+nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::function<void(int, int, const StepStats&)>& progress,
+							 const std::function<void(int)>& afterStep)
+{
+	const ClothSample start = sim.sample();
+	std::vector<double> stepMs, collisionMs;
+	stepMs.reserve(std::size_t(steps));
+	collisionMs.reserve(std::size_t(steps));
+	SampleExtremes extremes;
+	ClothSample last = start;
+	for (int k = 1; k <= steps; ++k)
+	{
+		const StepStats st = sim.step();
+		stepMs.push_back(st.seconds * 1e3);
+		collisionMs.push_back(st.collisionSeconds * 1e3);
+		if (k % sim.scene().sampleEvery == 0 || k == steps)
+		{
+			last = sim.sample();
+			extremes.add(last);
+		}
+		if (afterStep)
+			afterStep(k);
+		if (progress)
+			progress(k, steps, st);
+	}
+	nlohmann::json j = runJson(sim, steps, stepMs, collisionMs);
+	j.update(metrics::toJson(metrics::ClothMetrics{last, sim.contacts()}));
+	const bool ellipsoids = start.insideEllipsoids >= 0;
+	j["nodes_inside_body_start"] = start.insideBody;
+	j["max_nodes_inside_body"] = extremes.maxInside;
+	j["max_nodes_inside_ellipsoids"] = ellipsoids ? nlohmann::json(extremes.maxInsideEllipsoids) : nlohmann::json(nullptr);
+	j["min_zeta_over_time"] = finiteOrNull(extremes.minZeta);
+	// Deepest node inside an ellipsoid over the samples: float32 node positions put a node on the surface only to
+	// ~1e-7 m, which for a 3 mm thin axis is zeta 1 - 7e-5; this distance is the unit-free check.
+	j["max_ellipsoid_penetration_m"] = ellipsoids ? nlohmann::json(extremes.maxDepth) : nlohmann::json(nullptr);
+	j["max_nan_nodes"] = extremes.maxNan;
 	return j;
 }
 

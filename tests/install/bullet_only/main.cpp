@@ -3,6 +3,7 @@
 // ended inside an ellipsoid.
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
+#include "bodyfit/bullet_ext/btTiming.h"
 
 #include "BulletSoftBody/btSoftBodyHelpers.h"
 

@@ -38,6 +38,7 @@ enum class ColliderKind
 	Ellipsoids,         ///< our analytic ellipsoid-compound cloth collider (bullet_ext)
 	MeshBvh,            ///< Bullet's btBvhTriangleMeshShape of the body mesh, default soft-body SDF_RS path
 	ConvexHullCompound, ///< btCompoundShape of btConvexHullShape, one hull per ellipsoid's nearest body vertices
+	EllipsoidsSdf,      ///< the btEllipsoidCompoundShape through Bullet's default SDF_RS path (no collider installed)
 	None,               ///< no body collider at all
 };
 const char* toString(ColliderKind kind);
@@ -60,13 +61,14 @@ struct ColliderSpec
 	ColliderKind kind = ColliderKind::Ellipsoids;
 	double skinOffset = 0.002;   ///< ellipsoids: distance a node is placed outside the surface (m)
 	double sdfVoxel = 0.02;      ///< Bullet paths: sparse-SDF voxel size (m); Bullet's default 0.25 is far too coarse
-	double shapeMargin = 0.004;  ///< Bullet paths: collision margin of the body shape (m)
+	double shapeMargin = 0.004;  ///< Bullet paths: collision margin of the body shape (m; ellipsoids-sdf: per child)
 	double contactHardness = 1.0;///< Bullet paths: kKHR (static/kinematic contact hardness); Bullet's default 0.1 sinks
 };
 
 enum class GarmentType
 {
 	Patch,
+	BulletPatch, ///< Bullet's btSoftBodyHelpers::CreatePatch: the patch of Bullet's demos (see garment.h)
 	Skirt,
 	Tights,
 	Tube,
@@ -76,7 +78,7 @@ const char* toString(GarmentType type);
 struct GarmentSpec
 {
 	GarmentType type = GarmentType::Patch;
-	// patch: horizontal rectangle (x by z) centred at `center`
+	// patch, bullet_patch: horizontal rectangle (x by z) centred at `center`
 	Eigen::Vector2d size{1.0, 1.0};
 	Eigen::Vector2i resolution{31, 31};
 	// skirt / tights: mesh from the assets, transformed as p' = scaleCenter + scale * (p - scaleCenter) + offset

@@ -1,7 +1,8 @@
 #pragma once
 /// \file simulation.h
 /// One drape run: the body (mesh + ellipsoids), the Bullet world with the scene's collider, the cloth, the listed
-/// effects, stepping with timing, and the cloth-quality metrics of docs/DESIGN.md sec. 5.
+/// effects, stepping with timing, and the cloth-quality metrics of docs/DESIGN.md sec. 5 (computed by bodyfit::metrics,
+/// bodyfit/metrics/cloth_metrics.h).
 
 #include "bodyfit/drape/effects.h"
 #include "bodyfit/drape/garment.h"
@@ -10,6 +11,7 @@
 #include "bodyfit/fitting/ellipsoid.h"
 #include "bodyfit/fitting/types.h"
 #include "bodyfit/bullet_ext/btFloatRange.h"
+#include "bodyfit/metrics/cloth_metrics.h"
 
 #include <nlohmann/json.hpp>
 
@@ -49,21 +51,19 @@ struct BodyData
 /// \throws MeshLoadError, InvalidInputError, FormatError with a one-line reason.
 BodyData loadBody(const Scene& scene, const std::string& meshOverride = "", const std::string& ellipsoidOverride = "");
 
+/// Cost of one step, in wall time and in CPU time of the stepping thread (the robust cost on a busy machine).
 struct StepStats
 {
-	double seconds = 0.0;          ///< wall time of the whole step (effects + Bullet)
-	double collisionSeconds = 0.0; ///< Bullet collision detection (soft contacts are generated there) + our collider
+	double seconds = 0.0;             ///< wall time of the whole step (effects + Bullet)
+	double collisionSeconds = 0.0;    ///< Bullet collision detection (soft contacts are generated there) + our collider
+	double colliderSeconds = 0.0;     ///< the ellipsoid collider alone (0 for the other colliders)
+	double cpuSeconds = 0.0;          ///< thread CPU time of the whole step
+	double collisionCpuSeconds = 0.0; ///< thread CPU time of collisionSeconds' phases
+	double colliderCpuSeconds = 0.0;  ///< thread CPU time of the ellipsoid collider alone
 };
 
-/// Cloth-quality numbers at one instant.
-struct ClothSample
-{
-	int insideBody = 0;       ///< nodes inside the real body mesh (ray-parity vote)
-	int insideEllipsoids = -1;///< nodes deeper than 1e-6 m inside some ellipsoid (-1: no ellipsoids)
-	double minZeta = 0.0;     ///< smallest zeta over nodes (inf when no ellipsoids)
-	double maxEllipsoidDepth = 0.0; ///< deepest node inside an ellipsoid (metres, Eberly distance; 0 if none)
-	int nanNodes = 0;         ///< nodes with a NaN/Inf coordinate or velocity
-};
+/// Cloth-quality numbers at one instant (inside counts, depth, zeta, NaN nodes).
+using ClothSample = metrics::PenetrationCounts;
 
 class DrapeSimulation
 {
@@ -105,15 +105,25 @@ public:
 
 	/// Inside/NaN counts now (the inside-body test runs in the body frame against the original mesh).
 	ClothSample sample() const;
-	/// Nodes counted as touching the body: within skin offset + 3 mm of the ellipsoid union (ellipsoids collider),
-	/// or holding a Bullet rigid contact after the last step (mesh-bvh, convex-hull-compound). Empty for `none`.
+	/// How contacts are counted: within skin offset + 3 mm of the ellipsoid union (ellipsoids collider), holding a
+	/// Bullet rigid contact after the last step (mesh-bvh, convex-hull-compound, ellipsoids-sdf), none for `none`.
+	metrics::ContactOptions contactOptions() const;
+	/// Nodes counted as touching the body (contactOptions()).
 	std::vector<int> contactNodes() const;
 	/// Signed distance of each listed node to the body skin (negative inside the body mesh).
 	std::vector<double> skinDistances(const std::vector<int>& nodes) const;
+	/// Contact nodes and their gap to the skin now.
+	metrics::ContactMetrics contacts() const;
 	/// Sparse-SDF cells currently cached by Bullet (0 for the ellipsoid collider, which needs none).
 	int sdfCells() const;
 
 private:
+	void buildCloth();
+	void installCollider(bool refuseFarFromOrigin);
+	/// The float-range check of the whole scene (checkFloatRange): refuse (when asked) or record a warning.
+	void checkFarFromOrigin(bool refuseFarFromOrigin);
+	void buildEffects();
+
 	struct Impl;
 	std::unique_ptr<Impl> impl_;
 	Scene scene_;
@@ -136,9 +146,10 @@ btFloatRangeStatus checkFloatRange(const Scene& scene, const BodyData& body, con
 								   std::string* message);
 
 /// Runs `steps` steps, sampling the inside count every scene.sampleEvery steps and at the end, and returns the
-/// metrics JSON of docs/DESIGN.md sec. 6 (steps, nodes, ms_per_step, collision_ms_per_step, nodes_inside_body,
-/// max_nodes_inside_body, mean_contact_gap_m, nan_nodes, and more). `progress` (may be null) is called after
-/// every step with (done, total).
+/// metrics JSON: the run (steps, nodes, ms_per_step, collision_ms_per_step, ...), the cloth metrics at the end
+/// (metrics::toJson: nodes_inside_body, contact_nodes, mean_contact_gap_m, nan_nodes, ...) and their extremes over
+/// the samples (max_nodes_inside_body, max_ellipsoid_penetration_m, min_zeta_over_time, max_nan_nodes).
+/// `progress` (may be null) is called after every step with (done, total).
 nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps,
 							 const std::function<void(int, int, const StepStats&)>& progress = nullptr,
 							 const std::function<void(int)>& afterStep = nullptr);

@@ -1,0 +1,148 @@
+#pragma once
+/// \file cloth_metrics.h
+/// Cloth-quality metrics of any btSoftBody against a body, in the user's own world (the scene runner,
+/// bodyfit/drape/simulation.h, computes its metrics JSON with these):
+///   * nodes inside the real body mesh (MeshInsideTest: ray-parity vote per component, bodyfit/fitting/inside_test.h);
+///   * nodes inside the union of the body's ellipsoids (deeper than kInsideEllipsoidDepth), the deepest such node
+///     (Eberly distance) and the smallest zeta over all nodes;
+///   * NaN/Inf nodes (position or velocity);
+///   * contact nodes (ContactRule) and their signed gap to the skin mesh (MeshDistanceGrid, negative inside): mean,
+///     median, p95, max.
+/// Every measure is taken in the body frame: world node positions are carried by the inverse of the body pose, so
+/// the mesh and ellipsoids are prepared once (inside test and distance grid) and the body may move.
+/// Bullet types appear at this API only as btSoftBody and btTransform; the geometry inside is Eigen double, like the
+/// bridge (bodyfit/bridge/btEigenConversion.h). Errors are bodyfit exceptions (bodyfit/fitting/errors.h).
+
+#include "bodyfit/fitting/ellipsoid.h"
+#include "bodyfit/fitting/fit_quality.h"
+#include "bodyfit/fitting/inside_test.h"
+#include "bodyfit/fitting/types.h"
+
+#include <LinearMath/btTransform.h>
+
+#include <nlohmann/json.hpp>
+
+#include <limits>
+#include <memory>
+#include <vector>
+
+class btSoftBody;
+
+namespace bodyfit::metrics
+{
+
+/// A node counts as inside an ellipsoid when it is deeper than this (metres): deeper than float rounding explains.
+/// Node positions are float coordinates about 1 m from the origin (ulp 6e-8 to 1.2e-7 m), checked here in double; a
+/// relative zeta tolerance would not do, since on the 3 mm thin ellipsoids of a fit one ulp is a zeta error of 4e-5.
+constexpr double kInsideEllipsoidDepth = 1e-6;
+
+/// The body a cloth is measured against: its mesh and (optional) ellipsoids in the body frame, the current pose
+/// (body frame -> world, identity by default), and the inside test and distance grid built once from the mesh.
+class BodyReference
+{
+public:
+	/// \throws InvalidInputError for a mesh without faces, with bad indices or non-finite coordinates, or for an
+	/// ellipsoid that is not valid (Ellipsoid::isValid), naming it.
+	explicit BodyReference(TriMesh mesh, std::vector<Ellipsoid> ellipsoids = {});
+
+	/// The body's current pose (body frame -> world); measurements use the pose set last.
+	void setPose(const btTransform& bodyToWorld);
+	const btTransform& pose() const { return pose_; }
+
+	const TriMesh& mesh() const { return mesh_; }
+	const std::vector<Ellipsoid>& ellipsoids() const { return ellipsoids_; }
+
+	/// A world point in the body frame (double).
+	Eigen::Vector3d toBodyFrame(const Eigen::Vector3d& world) const { return worldToBody_ * world; }
+	/// Inside the body mesh (body frame point).
+	bool isInside(const Eigen::Vector3d& bodyPoint) const { return inside_.isInside(bodyPoint); }
+	/// Number of rows of `bodyPoints` (body frame) inside the mesh.
+	int countInside(const Eigen::MatrixX3d& bodyPoints) const { return inside_.countInside(bodyPoints); }
+	/// Signed distance from a body-frame point to the skin mesh (negative inside).
+	double signedSkinDistance(const Eigen::Vector3d& bodyPoint) const;
+
+private:
+	TriMesh mesh_;
+	std::vector<Ellipsoid> ellipsoids_;
+	btTransform pose_;
+	Eigen::Isometry3d worldToBody_ = Eigen::Isometry3d::Identity();
+	MeshInsideTest inside_;
+	MeshDistanceGrid distance_;
+};
+
+/// Penetration and validity counts at one instant.
+struct PenetrationCounts
+{
+	int nodes = 0;             ///< nodes of the soft body
+	int nanNodes = 0;          ///< nodes with a NaN/Inf coordinate or velocity (left out of every other measure)
+	int insideBody = 0;        ///< finite nodes inside the body mesh
+	int insideEllipsoids = -1; ///< finite nodes deeper than kInsideEllipsoidDepth inside some ellipsoid (-1: none)
+	double minZeta = std::numeric_limits<double>::infinity(); ///< smallest zeta over nodes (inf: no ellipsoids)
+	double maxEllipsoidDepth = 0.0; ///< deepest node inside an ellipsoid (metres; 0 when none is inside)
+};
+
+/// Which nodes touch the body.
+enum class ContactRule
+{
+	NearEllipsoids, ///< within ContactOptions::distance of the ellipsoid union (the ellipsoid collider's contacts)
+	RigidContacts,  ///< holding a Bullet rigid contact (btSoftBody::m_rcontacts) after the last step: Bullet's paths
+	None,           ///< no contacts (no body collider)
+};
+
+struct ContactOptions
+{
+	ContactRule rule = ContactRule::NearEllipsoids;
+	/// NearEllipsoids: largest signed distance to the union that still counts (metres); the scene runner uses the
+	/// collider's skin offset + 3 mm.
+	double distance = 0.005;
+};
+
+/// Signed gaps to the skin of the contact nodes, summarised (all 0 when count is 0).
+struct GapSummary
+{
+	int count = 0; ///< finite contact nodes with a gap
+	double mean = 0.0;
+	double median = 0.0;
+	double p95 = 0.0; ///< 95th percentile, linear interpolation (bodyfit/fitting/statistics.h, quantile)
+	double max = 0.0;
+};
+
+struct ContactMetrics
+{
+	int contactNodes = 0; ///< nodes the rule selected
+	GapSummary gap;
+};
+
+/// Everything measured on one soft body at one instant.
+struct ClothMetrics
+{
+	PenetrationCounts penetration;
+	ContactMetrics contacts;
+};
+
+/// Inside/NaN counts now.
+PenetrationCounts measurePenetration(const btSoftBody& cloth, const BodyReference& body);
+
+/// Indices of the nodes the rule counts as touching the body (finite nodes only for NearEllipsoids).
+/// \throws InvalidInputError for NearEllipsoids on a body without ellipsoids, or a negative distance.
+std::vector<int> contactNodes(const btSoftBody& cloth, const BodyReference& body, const ContactOptions& options);
+
+/// Signed distance to the skin of each listed node with a finite position (in list order; non-finite ones skipped).
+/// \throws InvalidInputError for an index outside the soft body's nodes.
+std::vector<double> skinDistances(const btSoftBody& cloth, const BodyReference& body, const std::vector<int>& nodes);
+
+/// Mean, median, p95 and max of the gaps.
+GapSummary summarizeGaps(const std::vector<double>& gaps);
+
+/// Contact nodes and their gap summary now.
+ContactMetrics measureContacts(const btSoftBody& cloth, const BodyReference& body, const ContactOptions& options);
+
+/// Every measure now.
+ClothMetrics measureCloth(const btSoftBody& cloth, const BodyReference& body, const ContactOptions& options = {});
+
+/// The metrics as JSON: nodes, nan_nodes, nodes_inside_body, nodes_inside_ellipsoids, min_zeta,
+/// ellipsoid_penetration_m, contact_nodes, mean/median/p95/max_contact_gap_m (null where undefined: no
+/// ellipsoids, no contact gaps, infinite zeta).
+nlohmann::json toJson(const ClothMetrics& metrics);
+
+} // namespace bodyfit::metrics
