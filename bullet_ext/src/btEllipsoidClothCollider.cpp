@@ -9,6 +9,7 @@ btEarliestEntry (btEllipsoidNarrowPhase.h), response (btEllipsoidClothResponse.c
 */
 
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
+#include "bodyfit/bullet_ext/btTiming.h"
 
 #include "src/btEllipsoidClothColliderCore.h"
 #include "src/btEllipsoidClothResponse.h"
@@ -23,23 +24,9 @@ btEarliestEntry (btEllipsoidNarrowPhase.h), response (btEllipsoidClothResponse.c
 
 #include <new>
 
-#if defined(__unix__) || defined(__APPLE__)
-#include <time.h>
-#endif
 
 namespace
 {
-
-/// CPU time of the calling thread in seconds (0 where the platform has no per-thread clock).
-double threadCpuSeconds()
-{
-#if defined(CLOCK_THREAD_CPUTIME_ID)
-	timespec ts;
-	if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts) == 0)
-		return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
-#endif
-	return 0.0;
-}
 
 /// True if no coordinate is NaN or infinite (inf - inf and NaN - NaN are NaN).
 inline bool isFinite(const btVector3& a, const btVector3& b)
@@ -270,7 +257,7 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 	m_lastStats.reset();
 	m_lastStats.m_substeps = 1;
 	btClock clock;
-	const double cpu0 = threadCpuSeconds();
+	const double cpu0 = btThreadCpuSeconds();
 	m_substepDt = dt;
 	const btTransform& now = m_body->getWorldTransform();
 	m_teleported = !m_havePose && m_hadPose;
@@ -314,7 +301,7 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 						? rigid
 						: 0;
 	m_lastStats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
-	m_lastStats.m_collisionCpuSeconds += threadCpuSeconds() - cpu0;
+	m_lastStats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
 }
 
 void btEllipsoidClothColliderCore::endSubstep()
@@ -350,7 +337,7 @@ btVector3 btEllipsoidClothColliderCore::bodyVelocityAt(const btVector3& worldPoi
 void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, const btVector3* startPositions)
 {
 	btClock clock;
-	const double cpu0 = threadCpuSeconds();
+	const double cpu0 = btThreadCpuSeconds();
 	ensureResponseDisabled(softBody);
 	const int ne = m_current.size();
 	btEllipsoidClothStats& stats = m_lastStats;
@@ -395,7 +382,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	}
 	stats.m_minZeta = minZeta;
 	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
-	stats.m_collisionCpuSeconds += threadCpuSeconds() - cpu0;
+	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
 }
 
 BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep,
