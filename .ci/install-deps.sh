@@ -8,4 +8,4 @@ $SUDO apt-get update -qq
 $SUDO apt-get install -y -qq --no-install-recommends \
 	build-essential cmake pkg-config git \
 	libbullet-dev libeigen3-dev libassimp-dev catch2 nlohmann-json3-dev \
-	libosmesa6-dev libpng-dev libbenchmark-dev gnuplot-nox clang libclang-rt-14-dev >/dev/null
+	libosmesa6-dev libpng-dev libbenchmark-dev gnuplot-nox clang libclang-rt-14-dev valgrind >/dev/null
