@@ -479,7 +479,13 @@ void DrapeSimulation::checkFarFromOrigin(bool refuseFarFromOrigin)
 	std::string message;
 	const btFloatRangeStatus range = checkFloatRange(scene_, body_, garment_.mesh, &message);
 	if (range == BT_FLOAT_RANGE_REFUSE && refuseFarFromOrigin)
+	{
+		// Thrown from the constructor, so the destructor will not run: the cloth (a raw pointer) goes here.
+		impl_->world->removeSoftBody(cloth_);
+		delete cloth_;
+		cloth_ = nullptr;
 		throw InvalidInputError(scene_.path + ": " + message);
+	}
 	if (range != BT_FLOAT_RANGE_OK)
 		warnings_.push_back(message);
 }
