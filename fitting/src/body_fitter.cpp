@@ -473,10 +473,9 @@ struct CoverPiece
 
 /// The triangles across a cluster boundary (all corners fitted; `owner` = cluster id per vertex, -1 unfitted), cut
 /// into sub-triangles: a barycentric grid with the longest edge in pieces no longer than `spacing` (at most
-/// kMaxCoverLevel cuts per edge).
+/// 64 cuts per edge, coverCutLevel).
 std::vector<CoverPiece> boundaryPieces(const TriMesh& mesh, const std::vector<int>& owner, double spacing)
 {
-	constexpr int kMaxCoverLevel = 64;
 	std::vector<CoverPiece> pieces;
 	for (int f = 0; f < mesh.F.rows(); ++f)
 	{
@@ -485,8 +484,7 @@ std::vector<CoverPiece> boundaryPieces(const TriMesh& mesh, const std::vector<in
 		if (c[0] < 0 || c[1] < 0 || c[2] < 0 || (c[0] == c[1] && c[1] == c[2]))
 			continue;
 		const Eigen::Vector3d a = mesh.V.row(v[0]), b = mesh.V.row(v[1]), d = mesh.V.row(v[2]);
-		const double longest = std::max({(b - a).norm(), (d - b).norm(), (a - d).norm()});
-		const int level = std::clamp(int(std::ceil(longest / spacing)), 1, kMaxCoverLevel);
+		const int level = coverCutLevel(a, b, d, spacing);
 		auto at = [&](int i, int j) { return Eigen::Vector3d((double(i) * a + double(j) * b + double(level - i - j) * d) / double(level)); };
 		for (int i = 0; i < level; ++i)
 			for (int j = 0; i + j < level; ++j)
@@ -853,6 +851,13 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 BodyFit fitBody(const TriMesh& mesh, const BodyFitOptions& options)
 {
 	return fitBody(mesh, std::vector<Region>(std::size_t(mesh.vertexCount()), Region::Whole), options);
+}
+
+int coverCutLevel(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double spacing)
+{
+	constexpr int kMaxCoverLevel = 64;
+	const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+	return std::clamp(int(std::ceil(longest / spacing)), 1, kMaxCoverLevel);
 }
 
 } // namespace bodyfit

@@ -24,7 +24,6 @@ namespace
 
 constexpr double kInside = 1.0 + 1e-9;   // the MVEE's own enclosure tolerance (mvee.h), as the fitter's cover
 constexpr double kMargin = 1.0 + 1e-9;   // relative growth of a moved ellipsoid against rounding
-constexpr int kMaxCoverLevel = 64;       // the fitter's cap on cuts per triangle edge (body_fitter.cpp)
 constexpr double kPerAxisAbove = 1.02 * 1.02; // per-axis growth only for uniform growth > 2% (the rest: uniform)
 
 Eigen::Vector3d positionOf(const BoundPoint& p, const Eigen::MatrixX3d& V)
@@ -52,8 +51,7 @@ std::vector<std::vector<BoundPoint>> bindPoints(const TriMesh& mesh, const std::
 		if (c[0] < 0 || c[1] < 0 || c[2] < 0 || (c[0] == c[1] && c[1] == c[2]))
 			continue;
 		const Eigen::Vector3d a = mesh.V.row(v[0]), b = mesh.V.row(v[1]), d = mesh.V.row(v[2]);
-		const double longest = std::max({(b - a).norm(), (d - b).norm(), (a - d).norm()});
-		const int level = std::clamp(int(std::ceil(longest / spacing)), 1, kMaxCoverLevel);
+		const int level = coverCutLevel(a, b, d, spacing);
 		auto at = [&](int i, int j) { return Eigen::Vector3d((double(i) * a + double(j) * b + double(level - i - j) * d) / double(level)); };
 		std::set<std::array<int, 3>> added; // (ellipsoid, i, j) within this face
 		auto hand = [&](const std::array<std::array<int, 2>, 3>& piece) {
@@ -159,7 +157,7 @@ double spacingOf(const Rig& rig, const BodyFit& fit, double requested)
 	const double height = fit.source.height > 0.0 ? fit.source.height : m.V.col(1).maxCoeff() - m.V.col(1).minCoeff();
 	if (fit.params.coverTriangles && fit.params.coverSpacing > 0.0)
 		return std::max(fit.params.coverSpacing * (fit.params.relativeToHeight ? height : 1.0), kMinCoverSpacing);
-	return std::max(0.003 * height, kMinCoverSpacing); // the fitter's default piece size (body_fitter.h)
+	return std::max(BodyFitOptions().coverSpacing * height, kMinCoverSpacing); // the fitter's default piece size
 }
 
 std::vector<Ellipsoid> ellipsoidsOf(const BodyFit& fit)

@@ -45,6 +45,11 @@ namespace bodyfit
 
 struct SkinBinding; // skinned_fit.h
 
+/// How many pieces the triangle cover cuts each edge of the triangle (a, b, c) into: the longest edge in pieces no
+/// longer than `spacing`, between 1 and 64. The fitter's cover and the skin binding (skinned_fit.h) cut alike
+/// through this one function.
+int coverCutLevel(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double spacing);
+
 struct BodyFitOptions
 {
 	/// Thresholds on E_j. Fractions of the body height H when `relativeToHeight`, metres otherwise.
