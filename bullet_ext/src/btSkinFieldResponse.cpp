@@ -1,0 +1,272 @@
+/*
+bodyfit: Bullet extension for ellipsoid body colliders. See btSkinFieldResponse.h and bullet_ext/README.md,
+"Tight skin surface".
+The collider's tight mode: the union of ellipsoids stays the broad phase (a node with no candidate ellipsoid is
+never looked at); a candidate node's contact is decided on the skin distance field, in the body frame: the path
+q -> x is sphere-traced to the first point at field = skin offset, a node that starts within the skin is pushed out
+along the field's gradient (Newton), and the existing velocity rule and friction apply with the field's normal.
+*/
+
+#include "src/btSkinFieldResponse.h"
+
+#include "src/btEllipsoidClothColliderCore.h"
+#include "src/btEllipsoidClothResponse.h"
+
+#include "BulletDynamics/Dynamics/btRigidBody.h"
+
+#include <cmath>
+
+namespace
+{
+
+/// Steps of the path march before it stops at the last point known outside (a straight approach needs about 10:
+/// each step closes a fraction 1 / Lipschitz of the remaining gap; only paths grazing the surface need more).
+const int kMaxMarchSteps = 64;
+/// Newton steps of the push-out (a distance field converges in one or two: its slope is about 1).
+const int kMaxNewtonSteps = 8;
+/// Pieces of one slide; a longer slide stops after them (conservative: the node stays outside).
+const int kMaxSlidePieces = 8;
+
+} // namespace
+
+// ---------------------------------------------------------------------------------------------------------------
+// btSkinFieldGeometry
+
+btScalar btEllipsoidClothCollider::skinFieldTolerance(const btSkinDistanceField& field)
+{
+	// Coordinates over the grid are rounded to btScalar: about SIMD_EPSILON x the largest coordinate per operation;
+	// the field's slope (about 1) carries that into its value. 16 of those cover the march's few operations.
+	const btVector3 lo = field.getGridMin().absolute(), hi = field.getGridMax().absolute();
+	const btScalar extent = btMax(lo[lo.maxAxis()], hi[hi.maxAxis()]);
+	return field.getSeam() + btScalar(4) * field.getQuantum() + btScalar(16) * SIMD_EPSILON * extent * field.getLipschitz();
+}
+
+void btSkinFieldGeometry::begin(const btSkinDistanceField* field, btScalar offset, const btTransform& bodyToWorld)
+{
+	m_field = field;
+	if (!field)
+		return;
+	m_offset = offset;
+	m_invLipschitz = btScalar(1) / field->getLipschitz();
+	m_margin = field->getSeam();
+	// Within 1% of a voxel (50 um for the bake's 5 mm) above the offset level is on the surface.
+	m_hitBand = btMax(btScalar(4) * field->getQuantum(), btScalar(0.01) * field->getVoxelSize());
+	m_tolerance = btEllipsoidClothCollider::skinFieldTolerance(*field);
+	m_toWorld = bodyToWorld;
+	m_toBody = bodyToWorld.inverse();
+}
+
+bool btSkinFieldGeometry::leavesSurface(const btVector3& q, const btVector3& x) const
+{
+	if (m_field->distance(x) < m_offset)
+		return false;
+	btVector3 g;
+	m_field->distanceAndGradient(q, g);
+	return g.dot(x - q) >= btScalar(0);
+}
+
+void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPathHit& out) const
+{
+	out.m_outcome = btSkinPathHit::CLEAR;
+	out.m_t = btScalar(0);
+	out.m_point = x;
+	out.m_limited = false;
+	const btScalar fq = m_field->distance(q) - m_offset;
+	if (fq < -m_tolerance)
+	{
+		out.m_outcome = btSkinPathHit::START_INSIDE;
+		out.m_point = q;
+		return;
+	}
+	const btVector3 d = x - q;
+	const btScalar len = d.length();
+	const btScalar gq = fq - m_margin;
+	if (!(len > btScalar(0)))
+		return;
+	// Both ends clear and too close for the field to dip below the offset between them: with Lipschitz bound L the
+	// field along the path is at least (g(q) + g(x) - L len) / 2.
+	const btScalar gx = clearance(x);
+	if (gx >= btScalar(0) && (gq + gx) * m_invLipschitz >= len)
+		return;
+	// Sphere tracing: at a point with clearance g no point within g / L of it has field below offset + seam (the
+	// interpolant is L-Lipschitz inside bricks, and jumps by at most the seam across brick faces), so the march
+	// steps g / L along the path and cannot pass the first crossing.
+	btScalar s = btScalar(0), g = gq;
+	for (int step = 0; step < kMaxMarchSteps; ++step)
+	{
+		if (g <= m_hitBand)
+		{
+			if (s == btScalar(0) && leavesSurface(q, x))
+				return; // a node on the surface moving away from it or along it: not a contact
+			out.m_outcome = btSkinPathHit::HIT;
+			out.m_t = s / len;
+			out.m_point = q + d * out.m_t;
+			return;
+		}
+		s += g * m_invLipschitz;
+		if (s >= len)
+			return;
+		g = clearance(q + d * (s / len));
+	}
+	out.m_outcome = btSkinPathHit::HIT;
+	out.m_limited = true;
+	out.m_t = s / len;
+	out.m_point = q + d * out.m_t;
+}
+
+bool btSkinFieldGeometry::pushOut(const btVector3& p, btVector3& out) const
+{
+	const btScalar target = m_offset + m_margin + btScalar(0.5) * m_hitBand;
+	btVector3 point = p;
+	for (int step = 0; step <= kMaxNewtonSteps; ++step)
+	{
+		btVector3 g;
+		const btScalar f = m_field->distanceAndGradient(point, g);
+		if (btFabs(f - target) <= btScalar(0.5) * m_hitBand)
+		{
+			out = point;
+			return true;
+		}
+		const btScalar slope2 = g.length2();
+		if (step == kMaxNewtonSteps || !(slope2 > btScalar(0.01))) // a slope below 0.1: the gradient vanishes
+			return false;
+		point += g * ((target - f) / slope2);
+	}
+	return false;
+}
+
+btVector3 btSkinFieldGeometry::slide(const btVector3& from, const btVector3& displacement) const
+{
+	// A piece no longer than offset / L from a point at field >= offset ends at field >= 0, outside the skin (the
+	// zero level encloses it); the push-out there follows the gradient, away from the skin, so no piece crosses the body.
+	const btScalar len = displacement.length();
+	if (!(len > btScalar(0)))
+		return from;
+	const btScalar piece = btMax(m_offset * m_invLipschitz, btScalar(4) * m_hitBand);
+	const btScalar taken = btMin(len, piece * btScalar(kMaxSlidePieces));
+	const int pieces = btMax(1, int(std::ceil(taken / piece)));
+	const btVector3 step = displacement * (taken / len / btScalar(pieces));
+	btVector3 p = from;
+	for (int i = 0; i < pieces; ++i)
+	{
+		btVector3 c = p + step;
+		if (clearance(c) < btScalar(0) && !pushOut(c, c))
+			break;
+		p = c;
+	}
+	return p;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// The node response in tight mode (members of btEllipsoidClothColliderCore)
+
+const btSkinDistanceField* btEllipsoidClothCollider::getActiveSkinField() const
+{
+	return static_cast<const btEllipsoidClothColliderCore*>(this)->activeSkinField();
+}
+
+const char* btSkinFieldConfigError(const btEllipsoidClothCollider::Config& config, const btEllipsoidCompoundShape* compound)
+{
+	const btSkinDistanceField* field = compound ? compound->getSkinField() : 0;
+	if (config.m_surface != btEllipsoidClothCollider::TIGHT_SKIN || !field)
+		return 0;
+	if (!(config.m_skinOffset < btScalar(0.5) * field->getClamp()))
+		return "btEllipsoidClothCollider::Config: m_skinOffset must be below half the skin field's clamp distance in "
+			   "TIGHT_SKIN mode (the field is exact only within the clamp; use ELLIPSOIDS or bake a wider band)";
+	return 0;
+}
+
+const btSkinDistanceField* btEllipsoidClothColliderCore::activeSkinField() const
+{
+	if (m_config.m_surface != TIGHT_SKIN || btSkinFieldConfigError(m_config, m_compound))
+		return 0;
+	return m_compound->getSkinField();
+}
+
+bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const btVector3& q, const Substep& substep,
+												 btScalar& zeta)
+{
+	zeta = SIMD_INFINITY;
+	const btSkinFieldGeometry& geometry = m_skinGeometry;
+	const btVector3 qb = geometry.toBody() * q, xb = geometry.toBody() * node.m_x;
+	btSkinPathHit hit;
+	geometry.march(qb, xb, hit);
+	if (hit.m_outcome == btSkinPathHit::CLEAR)
+		return false; // the march verified field >= offset at x (its cheap test and its last ball both contain x)
+	m_lastStats.m_skinMarchLimits += hit.m_limited ? 1 : 0;
+	const btVector3& center = m_current[substep.m_candidates[0]].m_center; // for PAPER_EQ10
+	if (hit.m_outcome == btSkinPathHit::START_INSIDE)
+		pushOutOfSkin(node, q, xb, center, substep);
+	else
+	{
+		++m_lastStats.m_nodesCorrected;
+		node.m_x = geometry.toWorld() * hit.m_point;
+		btVector3 n = geometry.normal(hit.m_point);
+		if (n.length2() == btScalar(0))
+			n = (qb - xb).normalized(); // a flat spot of the field at the offset level: back along the path
+		const btVector3 normal = geometry.toWorld().getBasis() * n;
+		if (respondOnSkin(node, normal, node.m_x - normal * geometry.offset(), q, center, substep, btScalar(1) - hit.m_t))
+			node.m_x = q; // held by static friction: stays at its start, outside (the march found field(q) >= offset)
+	}
+	const btScalar value = geometry.field()->distance(geometry.toBody() * node.m_x);
+	m_lastStats.m_minSkinField = btMin(m_lastStats.m_minSkinField, value);
+	return false;
+}
+
+void btEllipsoidClothColliderCore::pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb,
+												 const btVector3& center, const Substep& substep)
+{
+	const btSkinFieldGeometry& geometry = m_skinGeometry;
+	// The body moved into the node (or it started within the skin). If the solve already brought it out, keep it.
+	if (geometry.field()->distance(xb) >= geometry.offset())
+		return;
+	++m_lastStats.m_nodesPushedOut;
+	btVector3 out;
+	if (geometry.pushOut(xb, out))
+	{
+		node.m_x = geometry.toWorld() * out;
+		const btVector3 normal = geometry.toWorld().getBasis() * geometry.normal(out);
+		respondOnSkin(node, normal, node.m_x - normal * geometry.offset(), q, center, substep, btScalar(0));
+		return;
+	}
+	// The gradient vanishes (deeper than the clamp, the field's extremum) or Newton did not converge: the union
+	// push-out, whose exit is outside every ellipsoid and so outside the skin they enclose.
+	++m_lastStats.m_skinFallbacks;
+	bool moved;
+	pushNodeOut(node, node.m_x, q, substep, moved);
+	if (!moved)
+	{
+		btScalar ignored = SIMD_INFINITY;
+		leavePocket(node, substep, ignored); // outside every ellipsoid already: a pocket the union encloses
+	}
+}
+
+bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const btVector3& normal,
+												 const btVector3& surface, const btVector3& start,
+												 const btVector3& center, const Substep& substep, btScalar remaining)
+{
+	btNodeContacts contacts;
+	contacts.add(normal);
+	const btVector3 bodyVelocity = bodyVelocityAt(surface, substep.m_dt);
+	const btVector3 before = node.m_v;
+	const btVector3 relative = node.m_v - bodyVelocity;
+	btVector3 vr = btRelativeVelocityAfterContact(m_config.m_velocityRule, substep.m_friction, relative, contacts,
+												  surface, start, center);
+	const bool stopped = relative.length2() > btScalar(0) && vr.length2() == btScalar(0);
+	if (remaining > btScalar(0) && !stopped)
+	{
+		// The rest of the substep along the surface, with the new velocity.
+		const btSkinFieldGeometry& geometry = m_skinGeometry;
+		const btVector3 displacement = geometry.toBody().getBasis() * (vr * (remaining * substep.m_dt));
+		node.m_x = geometry.toWorld() * geometry.slide(geometry.toBody() * node.m_x, displacement);
+	}
+	if (substep.m_dt > btScalar(0))
+		vr = btCapBySurfaceMotion(vr, normal, (node.m_x - start) / substep.m_dt);
+	node.m_v = bodyVelocity + vr;
+	if (m_dynamicBody)
+	{
+		m_dynamicBody->applyImpulse((before - node.m_v) / node.m_im, surface - m_dynamicBody->getCenterOfMassPosition());
+		m_dynamicBody->activate();
+	}
+	return stopped;
+}

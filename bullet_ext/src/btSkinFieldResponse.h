@@ -1,0 +1,76 @@
+/*
+bodyfit: Bullet extension for ellipsoid body colliders. Private to bodyfit::bullet_ext (not installed).
+The collider's tight mode: inside the ellipsoid union (the broad phase), contact is decided on the body's skin
+distance field. This header: the geometry on the field (path march, push-out, slide), in the body frame. The node
+response that uses it is btEllipsoidClothColliderCore::collideOnSkin (btSkinFieldResponse.cpp).
+*/
+
+#ifndef BT_SKIN_FIELD_RESPONSE_H
+#define BT_SKIN_FIELD_RESPONSE_H
+
+#include "LinearMath/btTransform.h"
+
+#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
+#include "bodyfit/bullet_ext/btSkinDistanceField.h"
+
+/// Where a node's path q -> x meets the level set field = skin offset.
+struct btSkinPathHit
+{
+	enum Outcome
+	{
+		CLEAR = 0,        ///< the path stays at field >= offset: no contact
+		HIT = 1,          ///< the first point at the offset level (within the hit band above it) is m_point
+		START_INSIDE = 2  ///< field(q) < offset - tolerance: the node starts within the skin
+	};
+	int m_outcome;
+	btScalar m_t;       ///< fraction of the path at m_point
+	btVector3 m_point;  ///< body frame
+	bool m_limited;     ///< the march ran out of steps: m_point is the last point known to be outside
+};
+
+/// The field for one substep with everything the tight response needs, in the body frame.
+class btSkinFieldGeometry
+{
+public:
+	btSkinFieldGeometry() : m_field(0), m_offset(0), m_invLipschitz(1), m_margin(0), m_hitBand(0), m_tolerance(0) {}
+
+	/// Prepares for a field (0: tight mode off) and a skin offset; bodyToWorld is the body pose of the substep.
+	void begin(const btSkinDistanceField* field, btScalar offset, const btTransform& bodyToWorld);
+	const btSkinDistanceField* field() const { return m_field; }
+	btScalar offset() const { return m_offset; }
+	btScalar tolerance() const { return m_tolerance; }
+	const btTransform& toBody() const { return m_toBody; }
+	const btTransform& toWorld() const { return m_toWorld; }
+
+	/// The path q -> x (body frame) against the level set field = offset, by sphere tracing (see the .cpp).
+	void march(const btVector3& q, const btVector3& x, btSkinPathHit& out) const;
+	/// Newton steps on field = offset along the gradient from p (body frame). \return true with the point at
+	/// field in [offset, offset + hit band]; false where the gradient vanishes or it does not converge.
+	bool pushOut(const btVector3& p, btVector3& out) const;
+	/// Moves from `from` (field >= offset) by `displacement` along the surface: pieces short enough that none can
+	/// cross the field's zero level, each brought back to the offset level; stops where that fails. Body frame.
+	btVector3 slide(const btVector3& from, const btVector3& displacement) const;
+	/// The outward unit normal (body frame) at p, or zero where the gradient vanishes.
+	btVector3 normal(const btVector3& p) const { return m_field->gradient(p); }
+
+private:
+	const btSkinDistanceField* m_field;
+	btScalar m_offset;
+	btScalar m_invLipschitz; ///< 1 / the field's Lipschitz bound
+	btScalar m_margin;       ///< the field's seam: the march keeps this much above the offset
+	btScalar m_hitBand;      ///< the march stops this close above the offset level
+	btScalar m_tolerance;    ///< below the offset that still counts as on the surface
+	btTransform m_toBody;
+	btTransform m_toWorld;
+
+	/// Field minus (offset + seam margin): >= 0 where the node may be.
+	btScalar clearance(const btVector3& p) const { return m_field->distance(p) - m_offset - m_margin; }
+	/// The march ended at s = 0 with field(q) at the offset: leaving (or moving along) the surface is not a contact.
+	bool leavesSurface(const btVector3& q, const btVector3& x) const;
+};
+
+/// Why `config` cannot run in TIGHT_SKIN mode on the compound's skin field (a skin offset the field cannot
+/// represent: at or above half its clamp distance), or 0 (also when there is no field or the mode is ELLIPSOIDS).
+const char* btSkinFieldConfigError(const btEllipsoidClothCollider::Config& config, const btEllipsoidCompoundShape* compound);
+
+#endif // BT_SKIN_FIELD_RESPONSE_H
