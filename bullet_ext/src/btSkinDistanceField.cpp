@@ -123,7 +123,7 @@ bool btSkinDistanceField::set(const btSkinFieldLayout& layout, const int* brickI
 		return false;
 	adopt(layout, brickIndex, samples, sampleCount);
 	m_seam = measureSeam();
-	if (m_seam > btScalar(3) * m_clamp) // stored faces jump by 2 clamp at most; far-far conflicts are marked 4 clamp
+	if (m_seam > btScalar(3) * m_clamp) // stored faces differ by 2 clamp at most; far-far conflicts are marked 4 clamp
 	{
 		clear();
 		e = "btSkinDistanceField: a far-outside brick shares a face with a far-inside one";
@@ -202,20 +202,18 @@ btScalar btSkinDistanceField::faceJump(int brick, int axis, int side) const
 	const int self = m_brickIndex[brick];
 	ijk[axis] += side ? 1 : -1;
 	const int other = brickAt(ijk[0], ijk[1], ijk[2]);
-	if (self < 0 && other < 0)
-		return self == other ? btScalar(0) : btScalar(4) * m_clamp; // marks a far-outside / far-inside contact
-	if (self < 0)
-		return btScalar(0); // the stored neighbour checks this face from its side
+	if (self < 0 || other < 0)
+	{
+		// A far brick promises a bound, not values: no seam next to it (btSkinFieldGeometry steps through far-outside
+		// bricks by the true distance's bound). Far outside against far inside contradicts itself: marked 4 clamp.
+		return self < 0 && other < 0 && self != other ? btScalar(4) * m_clamp : btScalar(0);
+	}
 	const short* s = &m_samples[0] + self * kBrickSamples;
-	const short* n = other >= 0 ? &m_samples[0] + other * kBrickSamples : 0;
+	const short* n = &m_samples[0] + other * kBrickSamples;
 	btScalar jump = btScalar(0);
 	for (int v = 0; v < kBrickSide; ++v)
 		for (int u = 0; u < kBrickSide; ++u)
-		{
-			const btScalar mine = sample(s, faceIndex(axis, side, u, v));
-			const btScalar theirs = n ? sample(n, faceIndex(axis, 1 - side, u, v)) : (other == kFarOutside ? m_clamp : -m_clamp);
-			jump = btMax(jump, btFabs(mine - theirs));
-		}
+			jump = btMax(jump, btFabs(sample(s, faceIndex(axis, side, u, v)) - sample(n, faceIndex(axis, 1 - side, u, v))));
 	return jump;
 }
 

@@ -52,6 +52,12 @@ void btSkinFieldGeometry::begin(const btSkinDistanceField* field, btScalar offse
 	// Within 1% of a voxel (50 um for the bake's 5 mm) above the offset level is on the surface.
 	m_hitBand = btMax(btScalar(4) * field->getQuantum(), btScalar(0.01) * field->getVoxelSize());
 	m_tolerance = btEllipsoidClothCollider::skinFieldTolerance(*field);
+	// Where the field reads +clamp the layout promises a true distance >= min(clamp, offset + 2 h): stored bricks
+	// cover every brick that meets the union grown by offset + 2 h within the band, and the collider only looks at
+	// nodes in the union. The true distance is 1-Lipschitz and the field is within maxError of it, so no point within
+	// min(clamp, offset + 2 h) - offset - maxError reads below the offset.
+	const btScalar farBound = btMin(field->getClamp(), offset + btScalar(2) * field->getVoxelSize());
+	m_farStep = btMax(btScalar(0), farBound - offset - field->getMaxError() - m_margin);
 	m_toWorld = bodyToWorld;
 	m_toBody = bodyToWorld.inverse();
 }
@@ -80,18 +86,17 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPa
 	}
 	const btVector3 d = x - q;
 	const btScalar len = d.length();
-	const btScalar gq = fq - m_margin;
 	if (!(len > btScalar(0)))
 		return;
-	// Both ends clear and too close for the field to dip below the offset between them: with Lipschitz bound L the
-	// field along the path is at least (g(q) + g(x) - L len) / 2.
-	const btScalar gx = clearance(x);
-	if (gx >= btScalar(0) && (gq + gx) * m_invLipschitz >= len)
+	// Sphere tracing: at a point with clearance g (field - offset - seam) no point within g / L of it reads below the
+	// offset (the interpolant is L-Lipschitz inside bricks and jumps by at most the seam between stored bricks; where
+	// it reads +clamp, m_farStep bounds the step instead, see begin()). So the march steps that far along the path and
+	// cannot pass the first crossing. First the cheap case: the clear balls around both ends cover the path.
+	btScalar g, gx;
+	btScalar stepQ = safeStep(q, g);
+	if (stepQ >= btScalar(0) && stepQ + btMax(safeStep(x, gx), btScalar(0)) >= len)
 		return;
-	// Sphere tracing: at a point with clearance g no point within g / L of it has field below offset + seam (the
-	// interpolant is L-Lipschitz inside bricks, and jumps by at most the seam across brick faces), so the march
-	// steps g / L along the path and cannot pass the first crossing.
-	btScalar s = btScalar(0), g = gq;
+	btScalar s = btScalar(0);
 	for (int step = 0; step < kMaxMarchSteps; ++step)
 	{
 		if (g <= m_hitBand)
@@ -103,10 +108,10 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPa
 			out.m_point = q + d * out.m_t;
 			return;
 		}
-		s += g * m_invLipschitz;
+		s += stepQ;
 		if (s >= len)
 			return;
-		g = clearance(q + d * (s / len));
+		stepQ = safeStep(q + d * (s / len), g);
 	}
 	out.m_outcome = btSkinPathHit::HIT;
 	out.m_limited = true;

@@ -32,7 +32,7 @@ struct btSkinPathHit
 class btSkinFieldGeometry
 {
 public:
-	btSkinFieldGeometry() : m_field(0), m_offset(0), m_invLipschitz(1), m_margin(0), m_hitBand(0), m_tolerance(0) {}
+	btSkinFieldGeometry() : m_field(0), m_offset(0), m_invLipschitz(1), m_margin(0), m_hitBand(0), m_farStep(0), m_tolerance(0) {}
 
 	/// Prepares for a field (0: tight mode off) and a skin offset; bodyToWorld is the body pose of the substep.
 	void begin(const btSkinDistanceField* field, btScalar offset, const btTransform& bodyToWorld);
@@ -59,12 +59,26 @@ private:
 	btScalar m_invLipschitz; ///< 1 / the field's Lipschitz bound
 	btScalar m_margin;       ///< the field's seam: the march keeps this much above the offset
 	btScalar m_hitBand;      ///< the march stops this close above the offset level
+	btScalar m_farStep;      ///< the step from a point where the field reads +clamp (far brick, saturated, off the grid)
 	btScalar m_tolerance;    ///< below the offset that still counts as on the surface
 	btTransform m_toBody;
 	btTransform m_toWorld;
 
 	/// Field minus (offset + seam margin): >= 0 where the node may be.
 	btScalar clearance(const btVector3& p) const { return m_field->distance(p) - m_offset - m_margin; }
+	/// How far the march may step from p without passing the level field = offset (see the .cpp); `clear` gets the
+	/// clearance the hit test compares with the hit band.
+	btScalar safeStep(const btVector3& p, btScalar& clear) const
+	{
+		const btScalar f = m_field->distance(p);
+		if (f >= m_field->getClamp())
+		{
+			clear = m_farStep;
+			return m_farStep;
+		}
+		clear = f - m_offset - m_margin;
+		return clear * m_invLipschitz;
+	}
 	/// The march ended at s = 0 with field(q) at the offset: leaving (or moving along) the surface is not a contact.
 	bool leavesSurface(const btVector3& q, const btVector3& x) const;
 };

@@ -81,7 +81,9 @@ inline BakedArrays bakeArrays(const AnalyticSdf& sdf, const Eigen::Vector3d& lo,
 					for (int b = 0; b < S; ++b)
 						for (int a = 0; a < S; ++a)
 						{
-							const double d = std::clamp(sdf(corner + h * Eigen::Vector3d(a, b, c)), -clamp, clamp);
+							// From the global lattice index, so neighbours compute their shared points identically.
+							const Eigen::Vector3d p = o + h * Eigen::Vector3d(B * i + a, B * j + b, B * k + c);
+							const double d = std::clamp(sdf(p), -clamp, clamp);
 							out.samples.push_back(short(std::max(-32767.0, std::floor(d / quantum))));
 						}
 			}

@@ -79,8 +79,9 @@ public:
 	/// partial derivatives of a trilinear function are bilinear blends of its edge differences, so each is bounded by
 	/// the largest of its four). About 1 for a distance field, up to sqrt(3) near ridges. At least 1e-3.
 	btScalar getLipschitz() const { return m_lipschitz; }
-	/// The largest jump of the field across a brick face (stored neighbours that disagree on their shared samples, or a
-	/// stored face next to a far brick whose value it does not reach): 0 for a consistent bake.
+	/// The largest jump of the field across a face between two stored bricks (they disagree on their shared samples):
+	/// 0 for a consistent bake. (Next to a far brick the field may jump to +-clamp: a far brick bounds the distance,
+	/// it does not sample it.)
 	btScalar getSeam() const { return m_seam; }
 	/// Body-frame box of the grid.
 	btVector3 getGridMin() const { return m_origin; }
