@@ -3,7 +3,11 @@
 // settings for every collider:
 //   (a) btEllipsoidClothCollider on the fitted ellipsoid compound (Bullet's own response to the body turned off);
 //   (b) Bullet's default soft-body path (SDF_RS) against a btBvhTriangleMeshShape of the body mesh;
-//   (c) Bullet's default path against the same ellipsoid compound (sparse SDF on each btEllipsoidShape child).
+//   (c) Bullet's default path against the same ellipsoid compound (sparse SDF on each btEllipsoidShape child);
+//   (t) btEllipsoidClothCollider in TIGHT_SKIN mode: (a)'s compound with a skin distance field attached (issue 14;
+//       bullet_ext/README.md, "Tight skin surface"). The field is a BRUTE-FORCE bake made here from the body mesh
+//       (demos/bench/skin_field_bake.h: the exact signed mesh distance at every lattice point of the band), not the
+//       project's bake. (a) is the same collider in ELLIPSOIDS mode (no field).
 // Per step: wall time of stepSimulation, collision time (soft-rigid collision detection inside
 // performDiscreteCollisionDetection + the collider's own time), and the number of nodes inside the real body mesh
 // (MeshInsideTest: ray parity per component, 3-axis vote, against the original mesh, not the ellipsoids).
@@ -14,6 +18,7 @@
 // (bodyfit-bench --help lists them) pick cases, steps, resolution and the Bullet paths' tuning, e.g.
 //   bodyfit-bench colliders_patch --cases b --steps 12 --voxel 0.05
 #include "bench/bench_common.h"
+#include "bench/skin_field_bake.h"
 
 #include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/ellipsoid_io.h"
@@ -22,10 +27,13 @@
 #include "bodyfit/fitting/segmentation.h"
 #include "bodyfit/fitting/statistics.h"
 
+#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
+#include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 #include "bodyfit/bullet_ext/btEllipsoidShape.h"
 #include "bodyfit/drape/garment.h"
 #include "bodyfit/drape/simulation.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <memory>
@@ -49,7 +57,7 @@ struct Settings
 	double voxel = 0.02;     // sparse-SDF voxel for the Bullet paths
 	double meshMargin = 0.0; // btBvhTriangleMeshShape margin (also the margin of Bullet's extruded prisms)
 	double kKHR = 1.0;       // Bullet's contact hardness for static bodies (default 0.1 lets nodes sink)
-	std::string cases = "abc";
+	std::string cases = "abc"; // and t (tight mode), not in the default set (its bake takes a while)
 };
 
 struct Result
@@ -71,8 +79,10 @@ struct Result
 	int firstMedianStep = 0; // medians are over steps [firstMedianStep, steps)
 };
 
-const char* caseName(ColliderKind kind)
+const char* caseName(ColliderKind kind, bool tight)
 {
+	if (tight)
+		return "(t) btEllipsoidClothCollider, TIGHT_SKIN (brute-force field)";
 	switch (kind)
 	{
 	case ColliderKind::Ellipsoids:
@@ -146,12 +156,27 @@ double restingGapMm(const bodyfit::drape::DrapeSimulation& sim)
 	return count ? 1e3 * sum / count : 0.0;
 }
 
-Result runCase(ColliderKind kind, const Settings& s, const bodyfit::drape::BodyData& body)
+/// Attaches the field to the collider's compound (the collider reads it from the next substep on).
+void attachSkinField(bodyfit::drape::DrapeSimulation& sim, const btSkinDistanceField* field)
+{
+	btEllipsoidClothCollider* collider = sim.ellipsoidCollider();
+	btEllipsoidCompoundShape* compound =
+		collider ? dynamic_cast<btEllipsoidCompoundShape*>(collider->getBody()->getCollisionShape()) : nullptr;
+	const char* why = "no ellipsoid collider";
+	if (!compound || !compound->setSkinField(field, false, &why) || collider->getActiveSkinField() != field)
+		throw std::runtime_error(std::string("colliders_patch (t): the skin field was not taken: ") + why);
+}
+
+/// One case; `field` (not 0) runs (a)'s collider in TIGHT_SKIN mode on it.
+Result runCase(ColliderKind kind, const Settings& s, const bodyfit::drape::BodyData& body,
+			   const btSkinDistanceField* field = nullptr)
 {
 	bodyfit::drape::DrapeSimulation sim(patchScene(kind, s, body.mesh), body);
+	if (field)
+		attachSkinField(sim, field);
 	Result r;
-	r.name = caseName(kind);
-	r.settings = caseSettings(kind, s, body.ellipsoids.size());
+	r.name = caseName(kind, field != nullptr);
+	r.settings = caseSettings(kind, s, body.ellipsoids.size()) + (field ? "; TIGHT_SKIN" : "");
 	r.nodes = sim.nodeCount();
 	std::vector<double> stepMs, collMs, colliderMs, wallStepMs, wallCollMs;
 	for (int step = 0; step < s.steps; ++step)
@@ -201,8 +226,8 @@ Settings settingsFrom(const bodyfit_bench::Context& ctx)
 	s.meshMargin = ctx.number("--mesh-margin", s.meshMargin, 0.0, 1.0);
 	s.kKHR = ctx.number("--kkhr", s.kKHR, 0.0, 1.0);
 	s.cases = ctx.text("--cases", s.cases);
-	if (s.cases.empty() || s.cases.find_first_not_of("abc") != std::string::npos)
-		throw bodyfit_cli::UsageError("--cases: expected letters from \"abc\", got \"" + s.cases + "\"");
+	if (s.cases.empty() || s.cases.find_first_not_of("abct") != std::string::npos)
+		throw bodyfit_cli::UsageError("--cases: expected letters from \"abct\", got \"" + s.cases + "\"");
 	return s;
 }
 
@@ -217,7 +242,7 @@ std::string gapCell(const bodyfit::metrics::GapSummary& gap, double metres)
 BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 								 "issue 4: 100x100 patch dropped on the body, 2 s at 60 Hz: ellipsoid collider vs Bullet "
 								 "SDF_RS on the BVH mesh and on the same compound (--quick: 50x50, 1 s)",
-								 {"--cases", "LETTERS", "subset of abc to run (default abc)"},
+								 {"--cases", "LETTERS", "subset of abct to run (default abc; t = (a) in TIGHT_SKIN mode on a brute-force skin field)"},
 								 {"--steps", "N", "steps of 1/60 s (default 120, --quick 60)"},
 								 {"--resolution", "N", "patch nodes per side (default 100, --quick 50)"},
 								 {"--voxel", "M", "sparse-SDF voxel of the Bullet paths, metres (default 0.02)"},
@@ -266,6 +291,18 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 		results.push_back(runCase(ColliderKind::MeshBvh, s, body));
 	if (cases.find('c') != std::string::npos)
 		results.push_back(runCase(ColliderKind::EllipsoidsSdf, s, body));
+	if (cases.find('t') != std::string::npos)
+	{
+		std::cerr << "colliders_patch: brute-force skin field bake (h 5 mm, clamp 12 mm)\n";
+		const bodyfit_bench::BruteForceBake bake = bodyfit_bench::bruteForceSkinField(mesh.full, ellipsoids, s.skin);
+		std::cout << "(t) field: BRUTE-FORCE bake in the bench (exact signed mesh distance at the lattice points), "
+				  << bake.storedBricks << " of " << bake.bricks << " bricks stored, "
+				  << bodyfit_bench::fmt(bake.seconds, 1) << " s; Lipschitz bound "
+				  << bodyfit_bench::fmt(double(bake.field->getLipschitz()), 3) << ", seam "
+				  << bodyfit_bench::fmt(double(bake.field->getSeam()) * 1e3, 4) << " mm, max error (band) "
+				  << bodyfit_bench::fmt(bake.maxError * 1e3, 3) << " mm\n\n";
+		results.push_back(runCase(ColliderKind::Ellipsoids, s, body, bake.field.get()));
+	}
 
 	bodyfit_bench::Table t({"collider", "ms/step (CPU)", "collision ms/step (CPU)", "collision ns/node",
 							"of which our collider ns/node", "ms/step (wall)", "collision ms/step (wall)", "inside mesh (end)", "inside mesh (worst)",
@@ -275,7 +312,7 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 	for (const Result& r : results)
 		t.addRow({r.name, bodyfit_bench::fmt(r.msPerStep, 3), bodyfit_bench::fmt(r.collisionMsPerStep, 3),
 				  bodyfit_bench::fmt(r.collisionMsPerStep * 1e6 / std::max(1, r.nodes), 1),
-				  r.name.rfind("(a)", 0) == 0 ? bodyfit_bench::fmt(r.colliderMsPerStep * 1e6 / std::max(1, r.nodes), 1)
+				  r.name.rfind("(a)", 0) == 0 || r.name.rfind("(t)", 0) == 0 ? bodyfit_bench::fmt(r.colliderMsPerStep * 1e6 / std::max(1, r.nodes), 1)
 											: std::string("-"),
 				  bodyfit_bench::fmt(r.wallMsPerStep, 3), bodyfit_bench::fmt(r.wallCollisionMsPerStep, 3),
 				  bodyfit_bench::fmtInt(r.insideEnd),
@@ -293,5 +330,13 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 				  << "x over (b), "
 				  << bodyfit_bench::fmt(results[2].collisionMsPerStep / std::max(1e-9, results[0].collisionMsPerStep), 1)
 				  << "x over (c)\n";
+	const auto tight = std::find_if(results.begin(), results.end(), [](const Result& r) { return r.name.rfind("(t)", 0) == 0; });
+	const auto loose = std::find_if(results.begin(), results.end(), [](const Result& r) { return r.name.rfind("(a)", 0) == 0; });
+	if (tight != results.end() && loose != results.end())
+		std::cout << "\ncollider cost, TIGHT_SKIN (t) / ELLIPSOIDS (a): "
+				  << bodyfit_bench::fmt(tight->colliderMsPerStep / std::max(1e-9, loose->colliderMsPerStep), 2)
+				  << "x per node (" << bodyfit_bench::fmt(tight->colliderMsPerStep * 1e6 / std::max(1, tight->nodes), 1)
+				  << " vs " << bodyfit_bench::fmt(loose->colliderMsPerStep * 1e6 / std::max(1, loose->nodes), 1)
+				  << " ns/node)\n";
 	return 0;
 }
