@@ -25,6 +25,7 @@ struct btSkinPathHit
 	int m_outcome;
 	btScalar m_t;       ///< fraction of the path at m_point
 	btVector3 m_point;  ///< body frame
+	btVector3 m_normal; ///< HIT at the start: the field's unit normal there (body frame), else zero (not computed)
 	bool m_limited;     ///< the march ran out of steps: m_point is the last point known to be outside
 };
 
@@ -32,7 +33,7 @@ struct btSkinPathHit
 class btSkinFieldGeometry
 {
 public:
-	btSkinFieldGeometry() : m_field(0), m_offset(0), m_invLipschitz(1), m_margin(0), m_hitBand(0), m_farStep(0), m_tolerance(0) {}
+	btSkinFieldGeometry() : m_field(0), m_offset(0), m_invLipschitz(1), m_margin(0), m_hitBand(0), m_contactBand(0), m_farStep(0), m_tolerance(0) {}
 
 	/// Prepares for a field (0: tight mode off) and a skin offset; bodyToWorld is the body pose of the substep.
 	void begin(const btSkinDistanceField* field, btScalar offset, const btTransform& bodyToWorld);
@@ -59,6 +60,7 @@ private:
 	btScalar m_invLipschitz; ///< 1 / the field's Lipschitz bound
 	btScalar m_margin;       ///< the field's seam: the march keeps this much above the offset
 	btScalar m_hitBand;      ///< the march stops this close above the offset level
+	btScalar m_contactBand;  ///< a path that stays this close above the level for a few steps grazes it: contact
 	btScalar m_farStep;      ///< the step from a point where the field reads +clamp (far brick, saturated, off the grid)
 	btScalar m_tolerance;    ///< below the offset that still counts as on the surface
 	btTransform m_toBody;
@@ -80,7 +82,8 @@ private:
 		return clear * m_invLipschitz;
 	}
 	/// The march ended at s = 0 with field(q) at the offset: leaving (or moving along) the surface is not a contact.
-	bool leavesSurface(const btVector3& q, const btVector3& x) const;
+	/// fx is the field at x; `normal` gets the unit normal at q (zero where the gradient vanishes).
+	bool leavesSurface(const btVector3& q, const btVector3& x, btScalar fx, btVector3& normal) const;
 };
 
 /// Why `config` cannot run in TIGHT_SKIN mode on the compound's skin field (a skin offset the field cannot
