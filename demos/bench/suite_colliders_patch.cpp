@@ -7,7 +7,8 @@
 //   (t) btEllipsoidClothCollider in TIGHT_SKIN mode: (a)'s compound with a skin distance field attached (issue 14;
 //       bullet_ext/README.md, "Tight skin surface"). The field is a BRUTE-FORCE bake made here from the body mesh
 //       (demos/bench/skin_field_bake.h: the exact signed mesh distance at every lattice point of the band), not the
-//       project's bake. (a) is the same collider in ELLIPSOIDS mode (no field).
+//       project's bake. (a) is the same collider in ELLIPSOIDS mode (no field). With both, (a) and (t) are stepped
+//       in turn in one loop, so their cost ratio is measured under the same machine load.
 // Per step: wall time of stepSimulation, collision time (soft-rigid collision detection inside
 // performDiscreteCollisionDetection + the collider's own time), and the number of nodes inside the real body mesh
 // (MeshInsideTest: ray parity per component, 3-axis vote, against the original mesh, not the ellipsoids).
@@ -167,49 +168,87 @@ void attachSkinField(bodyfit::drape::DrapeSimulation& sim, const btSkinDistanceF
 		throw std::runtime_error(std::string("colliders_patch (t): the skin field was not taken: ") + why);
 }
 
-/// One case; `field` (not 0) runs (a)'s collider in TIGHT_SKIN mode on it.
+/// One case's simulation and its per-step records; `field` (not 0) runs (a)'s collider in TIGHT_SKIN mode on it.
+class CaseRun
+{
+public:
+	CaseRun(ColliderKind kind, const Settings& s, const bodyfit::drape::BodyData& body, const btSkinDistanceField* field)
+		: s_(s), sim_(patchScene(kind, s, body.mesh), body)
+	{
+		if (field)
+			attachSkinField(sim_, field);
+		r_.name = caseName(kind, field != nullptr);
+		r_.settings = caseSettings(kind, s, body.ellipsoids.size()) + (field ? "; TIGHT_SKIN" : "");
+		r_.nodes = sim_.nodeCount();
+	}
+
+	/// One step of the simulation and its records.
+	void step()
+	{
+		const bodyfit::drape::StepStats st = sim_.step();
+		stepMs_.push_back(st.cpuSeconds * 1e3);
+		wallStepMs_.push_back(st.seconds * 1e3);
+		collMs_.push_back(st.collisionCpuSeconds * 1e3);
+		colliderMs_.push_back(st.colliderCpuSeconds * 1e3);
+		wallCollMs_.push_back(st.collisionSeconds * 1e3);
+		r_.insideWorst = std::max(r_.insideWorst, sim_.sample().insideBody);
+		std::cerr << "  " << r_.name << ": step " << stepMs_.size() << "/" << s_.steps << ", "
+				  << bodyfit_bench::fmt(stepMs_.back(), 1) << " ms CPU\n";
+	}
+
+	/// The end state and the medians over the steps after the cloth can first touch the head (free fall over
+	/// `drop`), so short runs are not dominated by contact-free steps.
+	Result finish()
+	{
+		const bodyfit::drape::ClothSample end = sim_.sample();
+		r_.insideEnd = end.insideBody;
+		r_.nanNodes = end.nanNodes;
+		r_.minZeta = end.minZeta;
+		const int firstContact = std::min(s_.steps - 1, int(std::ceil(std::sqrt(2.0 * s_.drop / 9.81) / s_.dt)));
+		auto contactMedian = [&](const std::vector<double>& v) {
+			return bodyfit::median(std::vector<double>(v.begin() + firstContact, v.end()));
+		};
+		r_.msPerStep = contactMedian(stepMs_);
+		r_.collisionMsPerStep = contactMedian(collMs_);
+		r_.colliderMsPerStep = contactMedian(colliderMs_);
+		r_.wallMsPerStep = contactMedian(wallStepMs_);
+		r_.wallCollisionMsPerStep = contactMedian(wallCollMs_);
+		r_.firstMedianStep = firstContact;
+		r_.meanGapMm = restingGapMm(sim_);
+		r_.contacts = sim_.contacts();
+		return r_;
+	}
+
+private:
+	const Settings& s_;
+	bodyfit::drape::DrapeSimulation sim_;
+	Result r_;
+	std::vector<double> stepMs_, collMs_, colliderMs_, wallStepMs_, wallCollMs_;
+};
+
 Result runCase(ColliderKind kind, const Settings& s, const bodyfit::drape::BodyData& body,
 			   const btSkinDistanceField* field = nullptr)
 {
-	bodyfit::drape::DrapeSimulation sim(patchScene(kind, s, body.mesh), body);
-	if (field)
-		attachSkinField(sim, field);
-	Result r;
-	r.name = caseName(kind, field != nullptr);
-	r.settings = caseSettings(kind, s, body.ellipsoids.size()) + (field ? "; TIGHT_SKIN" : "");
-	r.nodes = sim.nodeCount();
-	std::vector<double> stepMs, collMs, colliderMs, wallStepMs, wallCollMs;
+	CaseRun run(kind, s, body, field);
+	for (int step = 0; step < s.steps; ++step)
+		run.step();
+	return run.finish();
+}
+
+/// (a) and (t) stepped in turn (which goes first alternates per step), so both see the same machine load: their
+/// per-node cost ratio is the measurement.
+std::pair<Result, Result> runPaired(const Settings& s, const bodyfit::drape::BodyData& body, const btSkinDistanceField* field)
+{
+	CaseRun loose(ColliderKind::Ellipsoids, s, body, nullptr);
+	CaseRun tight(ColliderKind::Ellipsoids, s, body, field);
 	for (int step = 0; step < s.steps; ++step)
 	{
-		const bodyfit::drape::StepStats st = sim.step();
-		stepMs.push_back(st.cpuSeconds * 1e3);
-		wallStepMs.push_back(st.seconds * 1e3);
-		collMs.push_back(st.collisionCpuSeconds * 1e3);
-		colliderMs.push_back(st.colliderCpuSeconds * 1e3);
-		wallCollMs.push_back(st.collisionSeconds * 1e3);
-		r.insideWorst = std::max(r.insideWorst, sim.sample().insideBody);
-		std::cerr << "  " << r.name << ": step " << step + 1 << "/" << s.steps << ", " << bodyfit_bench::fmt(stepMs.back(), 1)
-				  << " ms CPU\n";
+		CaseRun& first = step % 2 ? tight : loose;
+		CaseRun& second = step % 2 ? loose : tight;
+		first.step();
+		second.step();
 	}
-	const bodyfit::drape::ClothSample end = sim.sample();
-	r.insideEnd = end.insideBody;
-	r.nanNodes = end.nanNodes;
-	r.minZeta = end.minZeta;
-	// Medians over the steps after the cloth can first touch the head (free fall over `drop`), so short runs are
-	// not dominated by contact-free steps.
-	const int firstContact = std::min(s.steps - 1, int(std::ceil(std::sqrt(2.0 * s.drop / 9.81) / s.dt)));
-	auto contactMedian = [&](const std::vector<double>& v) {
-		return bodyfit::median(std::vector<double>(v.begin() + firstContact, v.end()));
-	};
-	r.msPerStep = contactMedian(stepMs);
-	r.collisionMsPerStep = contactMedian(collMs);
-	r.colliderMsPerStep = contactMedian(colliderMs);
-	r.wallMsPerStep = contactMedian(wallStepMs);
-	r.wallCollisionMsPerStep = contactMedian(wallCollMs);
-	r.firstMedianStep = firstContact;
-	r.meanGapMm = restingGapMm(sim);
-	r.contacts = sim.contacts();
-	return r;
+	return {loose.finish(), tight.finish()};
 }
 
 Settings settingsFrom(const bodyfit_bench::Context& ctx)
@@ -285,24 +324,36 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 	body.meshPath = meshPath;
 	body.ellipsoidSource = source;
 	std::vector<Result> results;
-	if (cases.find('a') != std::string::npos)
-		results.push_back(runCase(ColliderKind::Ellipsoids, s, body));
-	if (cases.find('b') != std::string::npos)
-		results.push_back(runCase(ColliderKind::MeshBvh, s, body));
-	if (cases.find('c') != std::string::npos)
-		results.push_back(runCase(ColliderKind::EllipsoidsSdf, s, body));
+	bodyfit_bench::BruteForceBake bake;
 	if (cases.find('t') != std::string::npos)
 	{
 		std::cerr << "colliders_patch: brute-force skin field bake (h 5 mm, clamp 12 mm)\n";
-		const bodyfit_bench::BruteForceBake bake = bodyfit_bench::bruteForceSkinField(mesh.full, ellipsoids, s.skin);
+		bake = bodyfit_bench::bruteForceSkinField(mesh.full, ellipsoids, s.skin);
 		std::cout << "(t) field: BRUTE-FORCE bake in the bench (exact signed mesh distance at the lattice points), "
 				  << bake.storedBricks << " of " << bake.bricks << " bricks stored, "
 				  << bodyfit_bench::fmt(bake.seconds, 1) << " s; Lipschitz bound "
 				  << bodyfit_bench::fmt(double(bake.field->getLipschitz()), 3) << ", seam "
 				  << bodyfit_bench::fmt(double(bake.field->getSeam()) * 1e3, 4) << " mm, max error (band) "
 				  << bodyfit_bench::fmt(bake.maxError * 1e3, 3) << " mm\n\n";
-		results.push_back(runCase(ColliderKind::Ellipsoids, s, body, bake.field.get()));
 	}
+	const bool paired = cases.find('a') != std::string::npos && bake.field;
+	Result pairedTight;
+	if (paired)
+	{
+		const std::pair<Result, Result> both = runPaired(s, body, bake.field.get());
+		results.push_back(both.first);
+		pairedTight = both.second;
+	}
+	else if (cases.find('a') != std::string::npos)
+		results.push_back(runCase(ColliderKind::Ellipsoids, s, body));
+	if (cases.find('b') != std::string::npos)
+		results.push_back(runCase(ColliderKind::MeshBvh, s, body));
+	if (cases.find('c') != std::string::npos)
+		results.push_back(runCase(ColliderKind::EllipsoidsSdf, s, body));
+	if (paired)
+		results.push_back(pairedTight);
+	else if (bake.field)
+		results.push_back(runCase(ColliderKind::Ellipsoids, s, body, bake.field.get()));
 
 	bodyfit_bench::Table t({"collider", "ms/step (CPU)", "collision ms/step (CPU)", "collision ns/node",
 							"of which our collider ns/node", "ms/step (wall)", "collision ms/step (wall)", "inside mesh (end)", "inside mesh (worst)",

@@ -364,3 +364,51 @@ TEST_CASE("tight mode: a node at the field's extremum (the centre) falls back to
 	CHECK(stats.m_skinFallbacks == int(starts.size()));
 	CHECK(stats.m_nonFiniteNodes == 0);
 }
+
+TEST_CASE("tight mode: a kinematic box rising and turning through a pinned cloth carries it, none inside",
+		  "[bullet_ext][skinfield]")
+{
+	// The box (half sizes 0.12, 0.05, 0.08 in the body frame) in one ellipsoid that encloses it; the body rises at
+	// 0.6 m/s and turns about y, so the field is read through a moving, rotated body frame, 4 substeps per step.
+	const Eigen::Vector3d half(0.12, 0.05, 0.08);
+	const AnalyticSdf box = [&](const Eigen::Vector3d& p) { return boxSdf(p, Eigen::Vector3d::Zero(), half); };
+	std::unique_ptr<btEllipsoidCompoundShape> shape =
+		singleEllipsoid(btVector3(0, 0, 0), btMatrix3x3::getIdentity(), btVector3(0.22f, 0.095f, 0.15f));
+	std::unique_ptr<btSkinDistanceField> field =
+		bakeField(box, Eigen::Vector3d(-0.25, -0.13, -0.18), Eigen::Vector3d(0.25, 0.13, 0.18));
+	REQUIRE(field != nullptr);
+	const double tol = analyticTolerance(*field);
+	REQUIRE(shape->setSkinField(field.release(), true));
+	ClothScene scene(std::move(shape), btTransform::getIdentity(), true);
+	btSoftBody* cloth = scene.addPatch(btVector3(0, 0.3f, 0), btScalar(0.8), 21);
+	for (int corner : {0, 20, 420, 440})
+		cloth->setMass(corner, 0);
+	btEllipsoidClothCollider* collider = scene.install();
+	REQUIRE(collider != nullptr);
+	REQUIRE(collider->getActiveSkinField() != nullptr);
+	double worst = 1e30;
+	btTransform pose = btTransform::getIdentity();
+	for (int i = 0; i < 60; ++i)
+	{
+		pose.setOrigin(btVector3(0, btScalar(0.6 * (i + 1) / 60.0), 0));
+		pose.setRotation(btQuaternion(btVector3(0, 1, 0), btScalar(0.02 * (i + 1))));
+		scene.motion()->setWorldTransform(pose);
+		scene.step(btScalar(1.0 / 60), 4, btScalar(1.0 / 240));
+		// In the body frame of the pose the collider used last.
+		const btTransform toBody = collider->getWorldCache().getTransform().inverse();
+		for (int n = 0; n < cloth->m_nodes.size(); ++n)
+			worst = std::min(worst, box(toE(toBody * cloth->m_nodes[n].m_x)));
+	}
+	// No node ever ended a step inside the skin (the pinned corners are far from the box).
+	CHECK(worst >= kSkin - tol);
+	// The cloth was carried: its centre node rests on the box top (centre 0.6, top 0.65), within 1 mm above the skin.
+	const Eigen::Vector3d centre = toE(cloth->m_nodes[10 * 21 + 10].m_x);
+	CHECK(centre.y() > 0.65 + kSkin - tol);
+	CHECK(centre.y() < 0.65 + kSkin + 0.001);
+	const btEllipsoidClothStats& stats = collider->getAccumulatedStats();
+	// The start q is carried with the body, so the box moving into a node is a path that meets the skin, not a start
+	// inside it.
+	CHECK(stats.m_nodesCorrected > 0);
+	CHECK(stats.m_skinFallbacks == 0);
+	CHECK(double(stats.m_minSkinField) >= kSkin - double(btEllipsoidClothCollider::skinFieldTolerance(*scene.shape()->getSkinField())));
+}
