@@ -131,11 +131,13 @@ private:
 	/// \return false (zeta is not tracked in tight mode; the field's minimum goes to the stats).
 	bool collideOnSkin(btSoftBody::Node& node, const btVector3& q, const Substep& substep, btScalar& zeta);
 	/// A node that starts within the skin: Newton on the field from x, else the union push-out (counted).
-	void pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb, const btVector3& center,
+	/// \return the field at the node's final position.
+	btScalar pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb, const btVector3& center,
 					   const Substep& substep);
 	/// respondVelocity with the field's normal: the velocity rule, the slide along the field, the cap, the reaction.
+	/// `value` (the field at the node) follows the slide.
 	bool respondOnSkin(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface, const btVector3& start,
-					   const btVector3& center, const Substep& substep, btScalar remaining);
+					   const btVector3& center, const Substep& substep, btScalar remaining, btScalar& value);
 };
 
 #endif // BT_ELLIPSOID_CLOTH_COLLIDER_CORE_H

@@ -85,8 +85,10 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPa
 	out.m_point = x;
 	out.m_normal.setValue(0, 0, 0);
 	out.m_limited = false;
-	const btScalar fq = m_field->distance(q) - m_offset;
-	if (fq < -m_tolerance)
+	const btScalar fq = m_field->distance(q);
+	out.m_startValue = fq;
+	out.m_value = fq;
+	if (fq - m_offset < -m_tolerance)
 	{
 		out.m_outcome = btSkinPathHit::START_INSIDE;
 		out.m_point = q;
@@ -101,8 +103,10 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPa
 	// it reads +clamp, m_farStep bounds the step instead, see begin()). So the march steps that far along the path and
 	// cannot pass the first crossing. First the cheap case: the clear balls around both ends cover the path.
 	btScalar g, gx;
-	btScalar stepQ = safeStep(q, g);
-	const btScalar stepX = safeStep(x, gx);
+	btScalar f = fq, stepQ = stepFrom(fq, g);
+	const btScalar fx = m_field->distance(x);
+	const btScalar stepX = stepFrom(fx, gx);
+	out.m_value = fx;
 	if (stepQ >= btScalar(0) && stepQ + btMax(stepX, btScalar(0)) >= len)
 		return;
 	btScalar s = btScalar(0);
@@ -110,48 +114,53 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPa
 	{
 		if (g <= m_hitBand || (step >= kGrazingSteps && g <= m_contactBand))
 		{
-			// A node on the surface moving away from it or along it is not a contact (gx + m_offset + m_margin is the
-			// field at x, exact also where it reads +clamp: then gx is m_farStep >= 0 and x is clear).
-			if (s == btScalar(0) && leavesSurface(q, x, gx + m_offset + m_margin, out.m_normal))
+			// A node on the surface moving away from it or along it is not a contact.
+			if (s == btScalar(0) && leavesSurface(q, x, fx, out.m_normal))
 				return;
-			out.m_outcome = btSkinPathHit::HIT;
-			out.m_t = s / len;
-			out.m_point = q + d * out.m_t;
-			return;
+			break;
 		}
 		s += stepQ;
 		if (s >= len || s + stepX >= len) // past x, or the clear ball around x covers the rest of the path
 			return;
-		stepQ = safeStep(q + d * (s / len), g);
+		f = m_field->distance(q + d * (s / len));
+		stepQ = stepFrom(f, g);
+		out.m_limited = step + 1 == kMaxMarchSteps; // out of steps: stop at the last point known outside
 	}
 	out.m_outcome = btSkinPathHit::HIT;
-	out.m_limited = true;
 	out.m_t = s / len;
 	out.m_point = q + d * out.m_t;
+	out.m_value = f;
 }
 
-bool btSkinFieldGeometry::pushOut(const btVector3& p, btVector3& out) const
+bool btSkinFieldGeometry::pushOut(const btVector3& p, btVector3& out, btScalar& value) const
+{
+	btVector3 g;
+	const btScalar f = m_field->distanceAndGradient(p, g);
+	return newton(p, f, g, out, value);
+}
+
+bool btSkinFieldGeometry::newton(const btVector3& p, btScalar f, const btVector3& gradient, btVector3& out,
+								 btScalar& value) const
 {
 	const btScalar target = m_offset + m_margin + btScalar(0.5) * m_hitBand;
-	btVector3 point = p;
-	for (int step = 0; step <= kMaxNewtonSteps; ++step)
+	btVector3 point = p, g = gradient;
+	for (int step = 0;; ++step)
 	{
-		btVector3 g;
-		const btScalar f = m_field->distanceAndGradient(point, g);
 		if (btFabs(f - target) <= btScalar(0.5) * m_hitBand)
 		{
 			out = point;
+			value = f;
 			return true;
 		}
 		const btScalar slope2 = g.length2();
 		if (step == kMaxNewtonSteps || !(slope2 > btScalar(0.01))) // a slope below 0.1: the gradient vanishes
 			return false;
 		point += g * ((target - f) / slope2);
+		f = m_field->distanceAndGradient(point, g);
 	}
-	return false;
 }
 
-btVector3 btSkinFieldGeometry::slide(const btVector3& from, const btVector3& displacement) const
+btVector3 btSkinFieldGeometry::slide(const btVector3& from, const btVector3& displacement, btScalar& value) const
 {
 	// A piece no longer than offset / L from a point at field >= offset ends at field >= 0, outside the skin (the
 	// zero level encloses it); the push-out there follows the gradient, away from the skin, so no piece crosses the body.
@@ -165,10 +174,12 @@ btVector3 btSkinFieldGeometry::slide(const btVector3& from, const btVector3& dis
 	btVector3 p = from;
 	for (int i = 0; i < pieces; ++i)
 	{
-		btVector3 c = p + step;
-		if (clearance(c) < btScalar(0) && !pushOut(c, c))
+		btVector3 c = p + step, g;
+		btScalar f = m_field->distanceAndGradient(c, g);
+		if (f - m_offset - m_margin < btScalar(0) && !newton(c, f, g, c, f))
 			break;
 		p = c;
+		value = f;
 	}
 	return p;
 }
@@ -211,8 +222,9 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 		return false; // the march verified field >= offset at x (its cheap test and its last ball both contain x)
 	m_lastStats.m_skinMarchLimits += hit.m_limited ? 1 : 0;
 	const btVector3& center = m_current[substep.m_candidates[0]].m_center; // for PAPER_EQ10
+	btScalar value = hit.m_value; // the field at the node's final position, tracked through the response
 	if (hit.m_outcome == btSkinPathHit::START_INSIDE)
-		pushOutOfSkin(node, q, xb, center, substep);
+		value = pushOutOfSkin(node, q, xb, center, substep);
 	else
 	{
 		++m_lastStats.m_nodesCorrected;
@@ -221,29 +233,33 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 		if (n.length2() == btScalar(0))
 			n = (qb - xb).normalized(); // a flat spot of the field at the offset level: back along the path
 		const btVector3 normal = geometry.toWorld().getBasis() * n;
-		if (respondOnSkin(node, normal, node.m_x - normal * geometry.offset(), q, center, substep, btScalar(1) - hit.m_t))
+		if (respondOnSkin(node, normal, node.m_x - normal * geometry.offset(), q, center, substep, btScalar(1) - hit.m_t,
+						  value))
+		{
 			node.m_x = q; // held by static friction: stays at its start, outside (the march found field(q) >= offset)
+			value = hit.m_startValue;
+		}
 	}
-	const btScalar value = geometry.field()->distance(geometry.toBody() * node.m_x);
 	m_lastStats.m_minSkinField = btMin(m_lastStats.m_minSkinField, value);
 	return false;
 }
 
-void btEllipsoidClothColliderCore::pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb,
-												 const btVector3& center, const Substep& substep)
+btScalar btEllipsoidClothColliderCore::pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb,
+													 const btVector3& center, const Substep& substep)
 {
 	const btSkinFieldGeometry& geometry = m_skinGeometry;
 	// The body moved into the node (or it started within the skin). If the solve already brought it out, keep it.
-	if (geometry.field()->distance(xb) >= geometry.offset())
-		return;
+	btScalar value = geometry.field()->distance(xb);
+	if (value >= geometry.offset())
+		return value;
 	++m_lastStats.m_nodesPushedOut;
 	btVector3 out;
-	if (geometry.pushOut(xb, out))
+	if (geometry.pushOut(xb, out, value))
 	{
 		node.m_x = geometry.toWorld() * out;
 		const btVector3 normal = geometry.toWorld().getBasis() * geometry.normal(out);
-		respondOnSkin(node, normal, node.m_x - normal * geometry.offset(), q, center, substep, btScalar(0));
-		return;
+		respondOnSkin(node, normal, node.m_x - normal * geometry.offset(), q, center, substep, btScalar(0), value);
+		return value;
 	}
 	// The gradient vanishes (deeper than the clamp, the field's extremum) or Newton did not converge: the union
 	// push-out, whose exit is outside every ellipsoid and so outside the skin they enclose.
@@ -255,11 +271,13 @@ void btEllipsoidClothColliderCore::pushOutOfSkin(btSoftBody::Node& node, const b
 		btScalar ignored = SIMD_INFINITY;
 		leavePocket(node, substep, ignored); // outside every ellipsoid already: a pocket the union encloses
 	}
+	return geometry.field()->distance(geometry.toBody() * node.m_x);
 }
 
 bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const btVector3& normal,
 												 const btVector3& surface, const btVector3& start,
-												 const btVector3& center, const Substep& substep, btScalar remaining)
+												 const btVector3& center, const Substep& substep, btScalar remaining,
+												 btScalar& value)
 {
 	btNodeContacts contacts;
 	contacts.add(normal);
@@ -274,7 +292,7 @@ bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const b
 		// The rest of the substep along the surface, with the new velocity.
 		const btSkinFieldGeometry& geometry = m_skinGeometry;
 		const btVector3 displacement = geometry.toBody().getBasis() * (vr * (remaining * substep.m_dt));
-		node.m_x = geometry.toWorld() * geometry.slide(geometry.toBody() * node.m_x, displacement);
+		node.m_x = geometry.toWorld() * geometry.slide(geometry.toBody() * node.m_x, displacement, value);
 	}
 	if (substep.m_dt > btScalar(0))
 		vr = btCapBySurfaceMotion(vr, normal, (node.m_x - start) / substep.m_dt);

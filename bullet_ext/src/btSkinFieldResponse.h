@@ -26,6 +26,8 @@ struct btSkinPathHit
 	btScalar m_t;       ///< fraction of the path at m_point
 	btVector3 m_point;  ///< body frame
 	btVector3 m_normal; ///< HIT at the start: the field's unit normal there (body frame), else zero (not computed)
+	btScalar m_value;      ///< the field at m_point (CLEAR: at x)
+	btScalar m_startValue; ///< the field at q
 	bool m_limited;     ///< the march ran out of steps: m_point is the last point known to be outside
 };
 
@@ -46,11 +48,13 @@ public:
 	/// The path q -> x (body frame) against the level set field = offset, by sphere tracing (see the .cpp).
 	void march(const btVector3& q, const btVector3& x, btSkinPathHit& out) const;
 	/// Newton steps on field = offset along the gradient from p (body frame). \return true with the point at
-	/// field in [offset, offset + hit band]; false where the gradient vanishes or it does not converge.
-	bool pushOut(const btVector3& p, btVector3& out) const;
+	/// field in [offset + seam, offset + seam + hit band] and its field value; false where the gradient vanishes or
+	/// it does not converge.
+	bool pushOut(const btVector3& p, btVector3& out, btScalar& value) const;
 	/// Moves from `from` (field >= offset) by `displacement` along the surface: pieces short enough that none can
 	/// cross the field's zero level, each brought back to the offset level; stops where that fails. Body frame.
-	btVector3 slide(const btVector3& from, const btVector3& displacement) const;
+	/// `value` (the field at `from` on entry) becomes the field at the returned point.
+	btVector3 slide(const btVector3& from, const btVector3& displacement, btScalar& value) const;
 	/// The outward unit normal (body frame) at p, or zero where the gradient vanishes.
 	btVector3 normal(const btVector3& p) const { return m_field->gradient(p); }
 
@@ -66,13 +70,12 @@ private:
 	btTransform m_toBody;
 	btTransform m_toWorld;
 
-	/// Field minus (offset + seam margin): >= 0 where the node may be.
-	btScalar clearance(const btVector3& p) const { return m_field->distance(p) - m_offset - m_margin; }
-	/// How far the march may step from p without passing the level field = offset (see the .cpp); `clear` gets the
-	/// clearance the hit test compares with the hit band.
-	btScalar safeStep(const btVector3& p, btScalar& clear) const
+	/// pushOut from a point where the field f and its gradient are known.
+	bool newton(const btVector3& p, btScalar f, const btVector3& gradient, btVector3& out, btScalar& value) const;
+	/// How far the march may step from a point where the field is f without passing the level field = offset (see
+	/// the .cpp); `clear` gets the clearance the hit test compares with the hit band.
+	btScalar stepFrom(btScalar f, btScalar& clear) const
 	{
-		const btScalar f = m_field->distance(p);
 		if (f >= m_field->getClamp())
 		{
 			clear = m_farStep;
