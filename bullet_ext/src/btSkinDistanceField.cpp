@@ -68,6 +68,8 @@ bool btSkinDistanceField::checkLayout(const btSkinFieldLayout& layout, long long
 		e = "btSkinDistanceField: the clamp distance must be finite and > 0";
 	else if (!isFiniteValue(layout.m_maxError) || layout.m_maxError < 0)
 		e = "btSkinDistanceField: maxError must be finite and >= 0";
+	else if (!isFiniteValue(layout.m_skinOffset) || layout.m_skinOffset < 0)
+		e = "btSkinDistanceField: the bake's skin offset must be finite and >= 0";
 	else if (layout.m_brickEdge != kBrickEdge)
 		e = "btSkinDistanceField: the brick edge B must be 8 voxels";
 	else if (nx < 1 || ny < 1 || nz < 1)

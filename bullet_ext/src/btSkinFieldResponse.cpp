@@ -59,11 +59,12 @@ void btSkinFieldGeometry::begin(const btSkinDistanceField* field, btScalar offse
 	// brief allows resting cloth above the skin.
 	m_contactBand = btScalar(10) * m_hitBand;
 	m_tolerance = btEllipsoidClothCollider::skinFieldTolerance(*field);
-	// Where the field reads +clamp the layout promises a true distance >= min(clamp, offset + 2 h): stored bricks
-	// cover every brick that meets the union grown by offset + 2 h within the band, and the collider only looks at
-	// nodes in the union. The true distance is 1-Lipschitz and the field is within maxError of it, so no point within
-	// min(clamp, offset + 2 h) - offset - maxError reads below the offset.
-	const btScalar farBound = btMin(field->getClamp(), offset + btScalar(2) * field->getVoxelSize());
+	// Where the field reads +clamp the layout promises a true distance >= min(clamp, s + 2 h), s the bake's skin
+	// offset: stored bricks cover every brick that meets the union grown by s + 2 h within the band (and the union
+	// encloses the skin). The true distance is 1-Lipschitz and the field is within maxError of it, so no point within
+	// min(clamp, s + 2 h) - offset - maxError reads below the offset (0 when the collider's offset is too large for
+	// the bake: the march then stops at the first far point, conservatively).
+	const btScalar farBound = btMin(field->getClamp(), field->getBakeSkinOffset() + btScalar(2) * field->getVoxelSize());
 	m_farStep = btMax(btScalar(0), farBound - offset - field->getMaxError() - m_margin);
 	m_toWorld = bodyToWorld;
 	m_toBody = bodyToWorld.inverse();

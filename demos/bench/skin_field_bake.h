@@ -104,6 +104,7 @@ inline BruteForceBake bruteForceSkinField(const bodyfit::TriMesh& mesh, const st
 	btSkinFieldLayout layout;
 	layout.m_voxelSize = h;
 	layout.m_clamp = clamp;
+	layout.m_skinOffset = skin;
 	for (int k = 0; k < 3; ++k)
 	{
 		layout.m_origin[k] = lo[k];

@@ -95,6 +95,7 @@ TEST_CASE("skin field: bad data is refused with a reason", "[bullet_ext][skinfie
 		{"zero voxel size", "voxel size", [](BakedArrays& a) { a.layout.m_voxelSize = 0; }},
 		{"negative clamp", "clamp", [](BakedArrays& a) { a.layout.m_clamp = -0.012; }},
 		{"infinite maxError", "maxError", [](BakedArrays& a) { a.layout.m_maxError = 1.0 / 0.0; }},
+		{"negative bake skin offset", "skin offset", [](BakedArrays& a) { a.layout.m_skinOffset = -0.001; }},
 		{"brick edge 4", "brick edge", [](BakedArrays& a) { a.layout.m_brickEdge = 4; }},
 		{"zero bricks", "brick count", [](BakedArrays& a) { a.layout.m_bricks[2] = 0; }},
 		{"short brick index", "nx * ny * nz", [](BakedArrays& a) { a.brickIndex.pop_back(); }},

@@ -32,9 +32,12 @@ struct btSkinFieldLayout
 	int m_bricks[3];    ///< nx, ny, nz
 	double m_clamp;     ///< distances are accurate within |d| < clamp (metres, the bake's default 0.012)
 	double m_maxError;  ///< max |field - true distance| over the band, measured at bake time (metres, >= 0)
+	/// The skin offset the bake kept bricks for (metres, >= 0): every brick meeting the union grown by this + 2 h within
+	/// the band is stored, so a far-outside point is at least min(clamp, this + 2 h) from the skin.
+	double m_skinOffset;
 
 	btSkinFieldLayout()
-		: m_voxelSize(0.005), m_brickEdge(8), m_clamp(0.012), m_maxError(0)
+		: m_voxelSize(0.005), m_brickEdge(8), m_clamp(0.012), m_maxError(0), m_skinOffset(0.002)
 	{
 		m_origin[0] = m_origin[1] = m_origin[2] = 0;
 		m_bricks[0] = m_bricks[1] = m_bricks[2] = 0;
@@ -59,7 +62,7 @@ public:
 
 	btSkinDistanceField();
 
-	/// Copies and checks the layout: finite header values (h > 0, clamp > 0, maxError >= 0, B = 8, every brick
+	/// Copies and checks the layout: finite header values (h > 0, clamp > 0, maxError >= 0, skin offset >= 0, B = 8, every brick
 	/// count >= 1 and the grid under 2^31 bricks), brickIndexCount = nx ny nz, every index -2, -1 or a block
 	/// in [0, sampleCount / 729), sampleCount a multiple of 729, and no far-outside brick sharing a face with a
 	/// far-inside one (the field would jump by 2 clamp there). On failure the field is left empty and *error (if not 0)
@@ -74,6 +77,7 @@ public:
 	btScalar getQuantum() const { return m_quantum; }
 	btScalar getVoxelSize() const { return m_h; }
 	btScalar getMaxError() const { return btScalar(m_layout.m_maxError); }
+	btScalar getBakeSkinOffset() const { return btScalar(m_layout.m_skinOffset); }
 	/// A Lipschitz bound of the interpolant inside every brick, measured at set(): the largest over stored cells of
 	/// |(max_x |dx|, max_y |dy|, max_z |dz|)| / h, where d_ are the sample differences along the cell's edges (the
 	/// partial derivatives of a trilinear function are bilinear blends of its edge differences, so each is bounded by
