@@ -38,6 +38,7 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <tuple>
 
 namespace
 {
@@ -75,6 +76,8 @@ struct Result
 	int insideWorst = 0;
 	int nanNodes = 0;
 	double meanGapMm = 0.0; // mean distance of resting nodes (within 10 cm of the skin) above the mesh surface
+	int nearSkin = 0;       // nodes within 5 mm of the skin at the end (issue 14: on the union they float 11-15 mm off)
+	double nearSkinMedianMm = 0.0; // their median gap
 	double minZeta = 0.0;   // smallest zeta over all nodes and ellipsoids at the end (ellipsoid runs)
 	bodyfit::metrics::ContactMetrics contacts; // at the end (the scene runner's contact rule for the collider)
 	int firstMedianStep = 0; // medians are over steps [firstMedianStep, steps)
@@ -157,6 +160,19 @@ double restingGapMm(const bodyfit::drape::DrapeSimulation& sim)
 	return count ? 1e3 * sum / count : 0.0;
 }
 
+/// Nodes within 5 mm of the skin (outside or in) at the end, and their median signed gap in mm.
+std::pair<int, double> nearSkinNodes(const bodyfit::drape::DrapeSimulation& sim)
+{
+	std::vector<int> all(std::size_t(sim.nodeCount()));
+	for (int i = 0; i < sim.nodeCount(); ++i)
+		all[std::size_t(i)] = i;
+	std::vector<double> near;
+	for (double d : sim.skinDistances(all))
+		if (std::abs(d) <= 0.005)
+			near.push_back(d);
+	return {int(near.size()), near.empty() ? 0.0 : 1e3 * bodyfit::median(near)};
+}
+
 /// Attaches the field to the collider's compound (the collider reads it from the next substep on).
 void attachSkinField(bodyfit::drape::DrapeSimulation& sim, const btSkinDistanceField* field)
 {
@@ -215,6 +231,7 @@ public:
 		r_.wallCollisionMsPerStep = contactMedian(wallCollMs_);
 		r_.firstMedianStep = firstContact;
 		r_.meanGapMm = restingGapMm(sim_);
+		std::tie(r_.nearSkin, r_.nearSkinMedianMm) = nearSkinNodes(sim_);
 		r_.contacts = sim_.contacts();
 		return r_;
 	}
@@ -357,7 +374,7 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 
 	bodyfit_bench::Table t({"collider", "ms/step (CPU)", "collision ms/step (CPU)", "collision ns/node",
 							"of which our collider ns/node", "ms/step (wall)", "collision ms/step (wall)", "inside mesh (end)", "inside mesh (worst)",
-							"NaN nodes", "mean gap of resting nodes (mm)", "contact nodes", "contact gap mean (mm)",
+							"NaN nodes", "mean gap of resting nodes (mm)", "nodes within 5 mm of the skin", "their median gap (mm)", "contact nodes", "contact gap mean (mm)",
 							"contact gap p95 (mm)", "contact gap max (mm)",
 							"min zeta (end)", "settings"});
 	for (const Result& r : results)
@@ -368,6 +385,7 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 				  bodyfit_bench::fmt(r.wallMsPerStep, 3), bodyfit_bench::fmt(r.wallCollisionMsPerStep, 3),
 				  bodyfit_bench::fmtInt(r.insideEnd),
 				  bodyfit_bench::fmtInt(r.insideWorst), bodyfit_bench::fmtInt(r.nanNodes), bodyfit_bench::fmt(r.meanGapMm, 1),
+				  bodyfit_bench::fmtInt(r.nearSkin), bodyfit_bench::fmt(r.nearSkinMedianMm, 2),
 				  bodyfit_bench::fmtInt(r.contacts.contactNodes),
 				  gapCell(r.contacts.gap, r.contacts.gap.mean), gapCell(r.contacts.gap, r.contacts.gap.p95),
 				  gapCell(r.contacts.gap, r.contacts.gap.max),
