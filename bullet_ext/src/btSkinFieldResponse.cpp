@@ -55,8 +55,8 @@ void btSkinFieldGeometry::begin(const btSkinDistanceField* field, btScalar offse
 	m_margin = field->getSeam();
 	// Within 1% of a voxel (50 um for the bake's 5 mm) above the offset level is on the surface.
 	m_hitBand = btMax(btScalar(4) * field->getQuantum(), btScalar(0.01) * field->getVoxelSize());
-	// Grazing: within 0.1 of a voxel (0.5 mm for the bake's 5 mm) above the offset level, a fifth of the 1 mm the
-	// brief allows resting cloth above the skin.
+	// Grazing: within 0.1 of a voxel (0.5 mm for the bake's 5 mm) above the offset level, a fifth of the 1 mm that
+	// tests/bullet_ext/test_skin_field.cpp allows resting cloth above the skin (issue 14).
 	m_contactBand = btScalar(10) * m_hitBand;
 	m_tolerance = btEllipsoidClothCollider::skinFieldTolerance(*field);
 	// Where the field reads +clamp the layout promises a true distance >= min(clamp, s + 2 h), s the bake's skin

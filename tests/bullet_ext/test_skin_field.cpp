@@ -233,7 +233,7 @@ TEST_CASE("tight mode: a cloth dropped on a sphere rests on the skin, not on the
 	REQUIRE(tight.capDistances.size() >= 9); // the cap holds the patch's central 3 x 3 nodes at least
 	for (double d : tight.capDistances)
 	{
-		// Resting on the skin: at the offset, within the field's tolerance below and 1 mm above (the brief's bound;
+		// Resting on the skin: at the offset, within the field's tolerance below and 1 mm above (issue 14's bound;
 		// the march stops within 50 um above the level, the rest is the cloth's sag between substeps).
 		CHECK(d >= kSkin - tol);
 		CHECK(d <= kSkin + 0.001);
