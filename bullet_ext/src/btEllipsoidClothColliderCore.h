@@ -11,6 +11,7 @@ public header shows only btEllipsoidClothCollider. Tests that craft node paths b
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 
 #include "src/btEllipsoidNarrowPhase.h"
+#include "src/btEllipsoidSweep.h"
 #include "src/btEllipsoidUnionPushOut.h"
 
 class btRigidBody;
@@ -91,6 +92,8 @@ private:
 	bool m_moving;
 	bool m_hadPose;    ///< some substep has run (a later resetBodyPose() is a teleport)
 	bool m_teleported; ///< this substep follows resetBodyPose(): nodes left in pockets of the union are moved out
+	bool m_sweeping;   ///< the ellipsoids moved by themselves since the previous substep: per-ellipsoid motion
+	btEllipsoidSweep m_sweep; ///< their motion over this substep (valid while m_sweeping)
 	btRigidBody* m_dynamicBody; ///< the body when it takes the reaction impulses this substep (else 0)
 	int m_substepIndex;
 	int m_substepCount;
@@ -101,8 +104,21 @@ private:
 	btEllipsoidUnionPushOut m_pushOut;
 
 	btTransform interpolatedKinematicPose();
-	btVector3 bodyVelocityAt(const btVector3& worldPoint, btScalar dt) const;
+	/// Moves the body pose forward by one substep (m_previousPose, m_currentPose, m_delta).
+	void advanceBodyPose(bool continuing);
+	/// Updates the world cache; when the compound changed with the same count since a substep that had a pose,
+	/// prepares the per-ellipsoid motion (m_sweeping).
+	void updateWorldCache(bool continuing);
+	/// Body surface velocity at a point of ellipsoid `ellipsoid` (-1: the body's rigid motion only).
+	btVector3 bodyVelocityAt(const btVector3& worldPoint, int ellipsoid, btScalar dt) const;
 	bool collideNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep, btScalar& zeta);
+	/// The node with its uncarried start q when the ellipsoids moved by themselves: the path test in each
+	/// candidate's moving frame (btEllipsoidSweep), then respondToSweep.
+	bool collideSweptNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep, btScalar& zeta);
+	/// The node was swept by ellipsoid `swept.m_ellipsoid`: its start carried by that ellipsoid's motion, the static
+	/// response from there against the current ellipsoids (pushed out ahead of the sweeping one if that start is
+	/// inside another).
+	btScalar respondToSweep(btSoftBody::Node& node, const btPathEntry& swept, const btVector3& q, const Substep& substep);
 	/// After a teleport: a node outside every ellipsoid but in a pocket the union encloses leaves it.
 	void leavePocket(btSoftBody::Node& node, const Substep& substep, btScalar& minZeta);
 	btScalar respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry, const btVector3& q, int nc,
@@ -116,7 +132,8 @@ private:
 	/// \return true if the contact stopped a moving node (zero relative velocity after it: held by static friction,
 	/// or moving straight in); the caller then keeps the node at its start.
 	bool respondVelocity(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface,
-						 const btVector3& start, const btVector3& center, const Substep& substep, btScalar remaining);
+						 const btVector3& start, const btVector3& center, int ellipsoid, const Substep& substep,
+						 btScalar remaining);
 	/// Moves the node by `displacement` if that path enters no ellipsoid.
 	void slideAlong(btSoftBody::Node& node, const btVector3& displacement, const Substep& substep);
 };

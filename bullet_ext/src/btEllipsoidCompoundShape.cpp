@@ -113,12 +113,32 @@ void btEllipsoidCompoundShape::setEllipsoid(int index, const btVector3& center, 
 	btAssert(index >= 0 && index < m_ellipsoids.size());
 	if (index < 0 || index >= m_ellipsoids.size())
 		return;
-	m_unscaledCenters[index] = center;
-	m_unscaledBases[index] = sanitizeBasis(basis);
-	btEllipsoidShape probe(semiAxes, m_childMargin);
-	m_unscaledSemiAxes[index] = probe.getSemiAxes();
+	storeUnscaled(index, center, basis, semiAxes);
 	applyScaledGeometry(index, true);
 	++m_analyticRevision;
+}
+
+bool btEllipsoidCompoundShape::setEllipsoids(int count, const btVector3* centers, const btMatrix3x3* bases,
+											 const btVector3* semiAxes, const char** error)
+{
+	const char* dummy = 0;
+	const char*& reason = error ? *error : dummy;
+	reason = 0;
+	if (count != m_ellipsoids.size())
+		reason = "btEllipsoidCompoundShape::setEllipsoids: count differs from getNumEllipsoids() (use addEllipsoid / "
+				 "removeEllipsoid to change it)";
+	else if (count > 0 && (!centers || !bases || !semiAxes))
+		reason = "btEllipsoidCompoundShape::setEllipsoids: centers, bases and semiAxes must not be null";
+	if (reason)
+		return false;
+	for (int i = 0; i < count; ++i)
+	{
+		storeUnscaled(i, centers[i], bases[i], semiAxes[i]);
+		applyScaledGeometry(i, false); // the tree leaf now; the local AABB once below
+	}
+	recalculateLocalAabb();
+	++m_analyticRevision;
+	return true;
 }
 
 void btEllipsoidCompoundShape::removeEllipsoid(int index)
@@ -151,6 +171,15 @@ void btEllipsoidCompoundShape::removeChildShape(btCollisionShape* shape)
 	for (int i = m_children.size() - 1; i >= 0; --i)
 		if (m_children[i].m_childShape == shape)
 			removeEllipsoid(i);
+}
+
+void btEllipsoidCompoundShape::storeUnscaled(int index, const btVector3& center, const btMatrix3x3& basis,
+											 const btVector3& semiAxes)
+{
+	m_unscaledCenters[index] = center;
+	m_unscaledBases[index] = sanitizeBasis(basis);
+	btEllipsoidShape probe(semiAxes, m_childMargin); // sanitises the semi-axes the same way the child does
+	m_unscaledSemiAxes[index] = probe.getSemiAxes();
 }
 
 void btEllipsoidCompoundShape::scaledGeometry(int index, btVector3* scaledAxes, btMatrix3x3* scaledBasis) const

@@ -74,6 +74,8 @@ protected:
 	int m_analyticRevision;
 
 	void computeLocalData(int index);
+	/// The as-given geometry of ellipsoid `index` (basis and semi-axes sanitised as addEllipsoid does).
+	void storeUnscaled(int index, const btVector3& center, const btMatrix3x3& basis, const btVector3& semiAxes);
 	/// Semi-axes and basis of ellipsoid `index` under the current local scaling.
 	void scaledGeometry(int index, btVector3* scaledAxes, btMatrix3x3* scaledBasis) const;
 	/// The packed analytic data of ellipsoid `index` from its child transform `t` and child semi-axes.
@@ -95,8 +97,17 @@ public:
 	/// if slightly off; a reflection is turned into a rotation by flipping the third axis)
 	/// \return its index (equal to the child index)
 	int addEllipsoid(const btVector3& center, const btMatrix3x3& basis, const btVector3& semiAxes);
-	/// Replaces ellipsoid i (child shape, child transform, analytic data, local AABB, dynamic AABB tree).
+	/// Replaces ellipsoid i (child shape, child transform, analytic data, local AABB, dynamic AABB tree). The local
+	/// AABB is recomputed over all children, so n calls cost O(n^2); setEllipsoids does the same in O(n).
 	void setEllipsoid(int index, const btVector3& center, const btMatrix3x3& basis, const btVector3& semiAxes);
+	/// Replaces every ellipsoid in one pass, for a driver that poses the body every substep (a skinned character):
+	/// each child's semi-axes and transform, its leaf of the dynamic AABB tree and its analytic data; then the local
+	/// AABB once and one revision bump (the cloth collider then treats the change as motion of every ellipsoid from
+	/// its previous pose, see btEllipsoidClothCollider.h). The arguments are as for setEllipsoid, one per ellipsoid.
+	/// \return false (nothing changed, *error set to a one-line reason if error is not 0) when count differs from
+	/// getNumEllipsoids() or an array is null.
+	bool setEllipsoids(int count, const btVector3* centers, const btMatrix3x3* bases, const btVector3* semiAxes,
+					   const char** error = 0);
 	/// Removes ellipsoid i; the last ellipsoid takes index i (as btCompoundShape::removeChildShapeByIndex).
 	void removeEllipsoid(int index);
 
@@ -165,6 +176,8 @@ public:
 	const Entry& operator[](int i) const { return m_entries[i]; }
 	const btTransform& getTransform() const { return m_transform; }
 	const btEllipsoidCompoundShape* getShape() const { return m_shape; }
+	/// The compound's analytic revision the entries were computed from (-1 before the first update).
+	int getRevision() const { return m_revision; }
 	/// Union of all entry boxes.
 	const btVector3& getAabbMin() const { return m_aabbMin; }
 	const btVector3& getAabbMax() const { return m_aabbMax; }
