@@ -380,10 +380,20 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	substep.m_tvals = &m_candidateT[0];
 	m_contactCandidates.resize(ne);
 	substep.m_contactCandidates = &m_contactCandidates[0];
-	const bool moving = m_moving;
-	const bool sweeping = m_sweeping;
-	const btTransform delta = m_delta;
+	if (m_sweeping)
+		collideSweptNodes(softBody, startPositions, substep);
+	else
+		collideNodes(softBody, startPositions, substep);
+	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
+	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
+}
 
+void btEllipsoidClothColliderCore::collideNodes(btSoftBody* softBody, const btVector3* startPositions,
+												const Substep& substep)
+{
+	btEllipsoidClothStats& stats = m_lastStats;
+	const bool moving = m_moving;
+	const btTransform delta = m_delta;
 	btScalar minZeta = stats.m_minZeta;
 	const int numNodes = softBody->m_nodes.size();
 	btSoftBody::Node* nodes = &softBody->m_nodes[0];
@@ -398,26 +408,43 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 			++stats.m_nonFiniteNodes;
 			continue;
 		}
-		btScalar zeta;
-		if (sweeping)
-		{
-			// Every ellipsoid moved by itself: the start is carried per candidate (collideSweptNode).
-			if (collideSweptNode(node, q, substep, zeta))
-				minZeta = btMin(minZeta, zeta);
-			continue;
-		}
 		// Start carried with the body from its previous to its current pose: the path is then straight in the
 		// body frame, and all tests run against the current world cache.
 		if (moving)
 			q = delta * q;
+		btScalar zeta;
 		if (collideNode(node, q, substep, zeta))
 			minZeta = btMin(minZeta, zeta);
 		if (m_teleported)
 			leavePocket(node, substep, minZeta);
 	}
 	stats.m_minZeta = minZeta;
-	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
-	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
+}
+
+void btEllipsoidClothColliderCore::collideSweptNodes(btSoftBody* softBody, const btVector3* startPositions,
+													 const Substep& substep)
+{
+	btEllipsoidClothStats& stats = m_lastStats;
+	btScalar minZeta = stats.m_minZeta;
+	const int numNodes = softBody->m_nodes.size();
+	btSoftBody::Node* nodes = &softBody->m_nodes[0];
+	for (int i = 0; i < numNodes; ++i)
+	{
+		btSoftBody::Node& node = nodes[i];
+		if (!(node.m_im > btScalar(0)))
+			continue;
+		const btVector3 q = startPositions ? startPositions[i] : node.m_q;
+		if (!isFinite(node.m_x, q))
+		{
+			++stats.m_nonFiniteNodes;
+			continue;
+		}
+		// Every ellipsoid moved by itself: the start is carried per candidate (collideSweptNode), not by the body.
+		btScalar zeta;
+		if (collideSweptNode(node, q, substep, zeta))
+			minZeta = btMin(minZeta, zeta);
+	}
+	stats.m_minZeta = minZeta;
 }
 
 BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep,
@@ -489,7 +516,27 @@ bool btEllipsoidClothColliderCore::collideSweptNode(btSoftBody::Node& node, cons
 	if (entry.m_ellipsoid < 0)
 		return true;
 	++m_lastStats.m_nodesCorrected;
-	zeta = respondToSweep(node, entry, q, substep);
+	// 3. Response from the start carried by the ellipsoid that met the node first (earliest in time: s is the same
+	// in every moving frame). When the carried path q_j -> x, grown by the skin, lies in the box the candidates were
+	// listed for, they hold every current ellipsoid the placement can meet; else the phases run again from q_j.
+	const btVector3 start = m_sweep.carry(m_current, entry.m_ellipsoid, q);
+	if (carriedPathCovered(q, x, start, substep.m_skin))
+		zeta = respondAtEntry(node, entry, start, nc, substep);
+	else
+		zeta = respondToSweep(node, entry, q, substep);
+	return true;
+}
+
+bool btEllipsoidClothColliderCore::carriedPathCovered(const btVector3& q, const btVector3& x, const btVector3& start,
+													  btScalar skin) const
+{
+	const btScalar slack = m_sweep.growth(q, x, skin) - skin;
+	for (int k = 0; k < 3; ++k)
+	{
+		const btScalar lo = btMin(q[k], x[k]) - slack, hi = btMax(q[k], x[k]) + slack;
+		if (!(start[k] >= lo && start[k] <= hi))
+			return false;
+	}
 	return true;
 }
 
@@ -573,8 +620,13 @@ btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, co
 		// Held by static friction (or moving straight in): the node stays where it started the substep, outside
 		// every candidate (the path test found q outside). The entry point lies down the path, and a node placed
 		// there every substep crept downhill under any friction.
-		node.m_x = q;
-		zeta = btMinZetaPacked(m_current.getPackedRecords(), substep.m_candidates, nc, q, 0);
+		const btScalar zetaStart = btMinZetaPacked(m_current.getPackedRecords(), substep.m_candidates, nc, q, 0);
+		// (A start carried by one of several moving ellipsoids may lie inside another: then it is not held.)
+		if (zetaStart >= btScalar(1))
+		{
+			node.m_x = q;
+			zeta = zetaStart;
+		}
 	}
 	return zeta;
 }

@@ -111,6 +111,10 @@ private:
 	void updateWorldCache(bool continuing);
 	/// Body surface velocity at a point of ellipsoid `ellipsoid` (-1: the body's rigid motion only).
 	btVector3 bodyVelocityAt(const btVector3& worldPoint, int ellipsoid, btScalar dt) const;
+	/// The node loop of a substep whose ellipsoids moved rigidly with the body (or not at all).
+	void collideNodes(btSoftBody* softBody, const btVector3* startPositions, const Substep& substep);
+	/// The node loop of a substep whose ellipsoids moved by themselves (m_sweeping).
+	void collideSweptNodes(btSoftBody* softBody, const btVector3* startPositions, const Substep& substep);
 	bool collideNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep, btScalar& zeta);
 	/// The node with its uncarried start q when the ellipsoids moved by themselves: the path test in each
 	/// candidate's moving frame (btEllipsoidSweep), then respondToSweep.
@@ -119,6 +123,8 @@ private:
 	/// response from there against the current ellipsoids (pushed out ahead of the sweeping one if that start is
 	/// inside another).
 	btScalar respondToSweep(btSoftBody::Node& node, const btPathEntry& swept, const btVector3& q, const Substep& substep);
+	/// The carried path start -> x grown by the skin lies in the box the swept candidates of q -> x were listed for.
+	bool carriedPathCovered(const btVector3& q, const btVector3& x, const btVector3& start, btScalar skin) const;
 	/// After a teleport: a node outside every ellipsoid but in a pocket the union encloses leaves it.
 	void leavePocket(btSoftBody::Node& node, const Substep& substep, btScalar& minZeta);
 	btScalar respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry, const btVector3& q, int nc,

@@ -180,11 +180,22 @@ struct btSweptPathWhitening
 	const btScalar *m_previous; ///< packed records of the previous substep (same layout as the cache's)
 	const btScalar *m_current;
 	const btPathEnds &m_ends;
-	void operator()(int k, btScalar uq[3], btScalar ux[3]) const
+	BT_ELLIPSOID_ALWAYS_INLINE void operator()(int k, btScalar uq[3], btScalar ux[3]) const
 	{
 		const int o = btEllipsoidWorldCache::kPackedStride * k;
+#ifdef BT_ELLIPSOID_SSE_PATH
+		const btScalar *p = m_previous + o, *c = m_current + o;
+		float uqs[4], uxs[4];
+		_mm_storeu_ps(uqs, btWhitenLanes(m_ends.m_qVec, _mm_loadu_ps(p), _mm_loadu_ps(p + 4), _mm_loadu_ps(p + 8),
+										 _mm_loadu_ps(p + 12)));
+		_mm_storeu_ps(uxs, btWhitenLanes(m_ends.m_xVec, _mm_loadu_ps(c), _mm_loadu_ps(c + 4), _mm_loadu_ps(c + 8),
+										 _mm_loadu_ps(c + 12)));
+		uq[0] = uqs[0], uq[1] = uqs[1], uq[2] = uqs[2];
+		ux[0] = uxs[0], ux[1] = uxs[1], ux[2] = uxs[2];
+#else
 		btWhitenPacked(m_previous + o, m_ends.m_q[0], m_ends.m_q[1], m_ends.m_q[2], uq);
 		btWhitenPacked(m_current + o, m_ends.m_x[0], m_ends.m_x[1], m_ends.m_x[2], ux);
+#endif
 	}
 };
 

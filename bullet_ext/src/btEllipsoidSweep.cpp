@@ -226,8 +226,8 @@ int btEllipsoidSweep::candidates(const btVector3& q, const btVector3& x, btScala
 	int nc = 0;
 	if (m_dims[0] > 0)
 	{
-		const btScalar growth = (radius + m_growthPerLength * ((x - q).length() + m_growthOffset)) * btScalar(1 + 1e-5);
-		const btVector3 g(growth, growth, growth);
+		const btScalar grow = growth(q, x, radius);
+		const btVector3 g(grow, grow, grow);
 		btVector3 boxMin = q, boxMax = q;
 		boxMin.setMin(x);
 		boxMax.setMax(x);
@@ -252,12 +252,16 @@ int btEllipsoidSweep::walkCells(const btVector3& boxMin, const btVector3& boxMax
 		c3[k] = clampCell(fMid[k], m_dims[k]);
 		inGrownCell = inGrownCell && fLo[k] >= btScalar(c3[k]) - kDilation && fHi[k] <= btScalar(c3[k] + 1) + kDilation;
 	}
-	int l[3], h[3];
 	if (inGrownCell)
-		for (int k = 0; k < 3; ++k)
-			l[k] = h[k] = c3[k]; // every box meeting the path box meets this grown cell: its list has them all
-	else
-		cellRange(boxMin, boxMax, l, h);
+	{
+		// Every box meeting the path box meets this grown cell: its list has them all, each once.
+		const int c = (c3[2] * m_dims[1] + c3[1]) * m_dims[0] + c3[0];
+		const btEllipsoidWorldCache::PathQuery::ListIndex list = {&m_cellItems[0] + m_cellStart[c]};
+		return btEllipsoidWorldCache::PathQuery::filterByBox(list, m_cellStart[c + 1] - m_cellStart[c], &m_boxes[0],
+															 boxMin, boxMax, out);
+	}
+	int l[3], h[3];
+	cellRange(boxMin, boxMax, l, h);
 	int nc = 0;
 	for (int z = l[2]; z <= h[2]; ++z)
 		for (int y = l[1]; y <= h[1]; ++y)

@@ -37,6 +37,11 @@ public:
 	/// Every ellipsoid whose moving-frame path test can meet the node path q -> x grown by `radius` on every side
 	/// (see btEllipsoidSweep.cpp for when this is conservative), each once, written to out (room for all entries).
 	int candidates(const btVector3& q, const btVector3& x, btScalar radius, int* out) const;
+	/// How far candidates() grows the path box of q -> x on every side: the radius plus the deviation bound.
+	btScalar growth(const btVector3& q, const btVector3& x, btScalar radius) const
+	{
+		return (radius + m_growthPerLength * ((x - q).length() + m_growthOffset)) * btScalar(1 + 1e-5);
+	}
 
 	/// Cells along the longest side of the swept grid.
 	enum

@@ -216,6 +216,20 @@ public:
 		/// runs once per cloth node and substep.
 		int candidates(const btVector3& q, const btVector3& x, int* out) const;
 
+		/// The world box test without branches (the outcome is a coin toss per candidate): writes index(j) for
+		/// j < n to out, keeping those whose box overlaps [boxMin, boxMax] (closed intervals on x, y and z; four
+		/// lanes compared at once where SSE is available, the fourth ignored). \return the number kept.
+		/// (Public for the collider's swept broad phase, which filters its own lists the same way.)
+		template <class Index>
+		static int filterByBox(Index index, int n, const btVector3* boxes, const btVector3& boxMin,
+							   const btVector3& boxMax, int* out);
+		/// Indices of a cell list.
+		struct ListIndex
+		{
+			const int* m_list;
+			int operator()(int j) const { return m_list[j]; }
+		};
+
 	private:
 		// Copies of the cache's grid (plain pointers and values: the per-node call reads no array objects).
 		int m_count;              ///< number of entries
@@ -253,43 +267,6 @@ public:
 			return !(aMin.x() > bMax.x() || aMax.x() < bMin.x() || aMin.y() > bMax.y() || aMax.y() < bMin.y() ||
 					 aMin.z() > bMax.z() || aMax.z() < bMin.z());
 		}
-		/// The world box test without branches (the outcome is a coin toss per candidate): writes index(j) for
-		/// j < n to out, keeping those whose box overlaps [boxMin, boxMax] (closed intervals on x, y and z; four
-		/// lanes compared at once where SSE is available, the fourth ignored). \return the number kept.
-		template <class Index>
-		static int filterByBox(Index index, int n, const btVector3* boxes, const btVector3& boxMin,
-							   const btVector3& boxMax, int* out)
-		{
-#ifdef BT_ELLIPSOID_SSE_BOXES
-			const __m128 mn = _mm_setr_ps(boxMin.x(), boxMin.y(), boxMin.z(), btScalar(0));
-			const __m128 mx = _mm_setr_ps(boxMax.x(), boxMax.y(), boxMax.z(), btScalar(0));
-#endif
-			int nc = 0;
-			for (int j = 0; j < n; ++j)
-			{
-				const int k = index(j);
-				const btVector3& lo = boxes[2 * k];
-				const btVector3& hi = boxes[2 * k + 1];
-				out[nc] = k;
-#ifdef BT_ELLIPSOID_SSE_BOXES
-				const __m128 a = _mm_cmple_ps(mn, _mm_loadu_ps(&hi.x()));
-				const __m128 b = _mm_cmpge_ps(mx, _mm_loadu_ps(&lo.x()));
-				nc += (_mm_movemask_ps(_mm_and_ps(a, b)) & 7) == 7 ? 1 : 0;
-#else
-				nc += ((boxMin.x() <= hi.x()) & (boxMax.x() >= lo.x()) & (boxMin.y() <= hi.y()) & (boxMax.y() >= lo.y()) &
-					   (boxMin.z() <= hi.z()) & (boxMax.z() >= lo.z()))
-						  ? 1
-						  : 0;
-#endif
-			}
-			return nc;
-		}
-		/// Indices of a cell list.
-		struct ListIndex
-		{
-			const int* m_list;
-			int operator()(int j) const { return m_list[j]; }
-		};
 		/// Every entry: 0, 1, ..., n - 1.
 		struct AllIndices
 		{
@@ -329,8 +306,18 @@ private:
 	btAlignedObjectArray<int> m_wideItems;
 	mutable btAlignedObjectArray<unsigned> m_stamp;
 	mutable unsigned m_stampCounter;
+	/// An animated compound (changed with the same count) gets lists built for every ellipsoid grown by this margin
+	/// (metres, 0 for a compound seen once), so they stay valid while each ellipsoid stays within it of its pose at the
+	/// build (gridCovers); the build-time poses, in the body frame:
+	btScalar m_gridMargin;
+	btAlignedObjectArray<btVector3> m_gridCenters;
+	btAlignedObjectArray<btMatrix3x3> m_gridUnwhiten; ///< R diag(a)
 
-	void buildGrid();
+	/// \param animated the compound changed with the same count: build with a margin (kAnimatedMargin)
+	void buildGrid(bool animated);
+	/// Every ellipsoid of m_shape lies within m_gridMargin of its pose at the last build: its points move by at most
+	/// |c - c_b| + |U - U_b|_2 <= |c - c_b| + |U - U_b|_F (U = R diag(a)), so the lists still hold it.
+	bool gridCovers() const;
 	void buildLists(btScalar dilation, btAlignedObjectArray<int>& start, btAlignedObjectArray<int>& items) const;
 	/// Cell index along axis k of a world coordinate, clamped to the grid (NaN and huge values included).
 	int cellCoord(btScalar value, int k) const
@@ -343,6 +330,36 @@ private:
 		return int(f);
 	}
 };
+
+template <class Index>
+BT_ELLIPSOID_ALWAYS_INLINE int btEllipsoidWorldCache::PathQuery::filterByBox(Index index, int n, const btVector3* boxes,
+																			const btVector3& boxMin,
+																			const btVector3& boxMax, int* out)
+{
+#ifdef BT_ELLIPSOID_SSE_BOXES
+	const __m128 mn = _mm_setr_ps(boxMin.x(), boxMin.y(), boxMin.z(), btScalar(0));
+	const __m128 mx = _mm_setr_ps(boxMax.x(), boxMax.y(), boxMax.z(), btScalar(0));
+#endif
+	int nc = 0;
+	for (int j = 0; j < n; ++j)
+	{
+		const int k = index(j);
+		const btVector3& lo = boxes[2 * k];
+		const btVector3& hi = boxes[2 * k + 1];
+		out[nc] = k;
+#ifdef BT_ELLIPSOID_SSE_BOXES
+		const __m128 a = _mm_cmple_ps(mn, _mm_loadu_ps(&hi.x()));
+		const __m128 b = _mm_cmpge_ps(mx, _mm_loadu_ps(&lo.x()));
+		nc += (_mm_movemask_ps(_mm_and_ps(a, b)) & 7) == 7 ? 1 : 0;
+#else
+		nc += ((boxMin.x() <= hi.x()) & (boxMax.x() >= lo.x()) & (boxMin.y() <= hi.y()) & (boxMax.y() >= lo.y()) &
+			   (boxMin.z() <= hi.z()) & (boxMax.z() >= lo.z()))
+				  ? 1
+				  : 0;
+#endif
+	}
+	return nc;
+}
 
 BT_ELLIPSOID_ALWAYS_INLINE int btEllipsoidWorldCache::PathQuery::candidates(const btVector3& q, const btVector3& x, int* out) const
 {
