@@ -332,3 +332,59 @@ TEST_CASE("setEllipsoids: a wrong count or a null array is refused with a reason
 	CHECK(shape.getAnalyticRevision() == revision + 1);
 	CHECK(shape.getEllipsoid(0).m_center.x() == btScalar(1));
 }
+
+namespace
+{
+
+/// Probes at rest on the plane y = 0 and an arm that jumps 6 cm up into them in substep kJump: the counters of that
+/// substep. `beforeJump` runs in the pre-tick callback just before the jump is posed.
+btEllipsoidClothStats jumpIntoProbes(const std::function<void(MovingScene&)>& beforeJump)
+{
+	const int kJump = 8;
+	const MovingMotion jump = [](double t) {
+		MovingPose e;
+		e.center = Eigen::Vector3d(0, t < (kJump - 0.5) * kDt ? -0.08 : -0.02, 0);
+		e.radii = Eigen::Vector3d(0.15, 0.05, 0.05);
+		return std::vector<MovingPose>{e};
+	};
+	MovingScene scene(jump, false, 0.0);
+	std::vector<btVector3> positions;
+	for (int i = -5; i <= 5; ++i)
+		positions.push_back(btVector3(btScalar(0.02 * i), 0, 0));
+	std::vector<btScalar> masses(positions.size(), btScalar(0.01));
+	scene.addSoftBody(new btSoftBody(&scene.world().getWorldInfo(), int(positions.size()), positions.data(), masses.data()));
+	REQUIRE(scene.install(btEllipsoidClothCollider::Config()));
+	btEllipsoidClothStats atJump;
+	scene.inspect = [&](int k) {
+		if (k == kJump - 1)
+			beforeJump(scene);
+		if (k == kJump)
+			atJump = scene.collider()->getLastSubstepStats();
+	};
+	scene.run(kJump + 2, kDt);
+	CHECK(scene.minZeta >= kZetaFloor);
+	return atJump;
+}
+
+} // namespace
+
+TEST_CASE("moving ellipsoids: after resetBodyPose or a count change a pose jump is not a sweep",
+		  "[bullet_ext][collider][moving]")
+{
+	// As a sweep the probes are met by the arm's top on its way up and placed there (corrected); as a jump they
+	// start inside it and are pushed out of the union (pushed out), as after a teleport of the body.
+	const btEllipsoidClothStats swept = jumpIntoProbes([](MovingScene&) {});
+	const btEllipsoidClothStats reset = jumpIntoProbes([](MovingScene& s) { s.collider()->resetBodyPose(); });
+	const btEllipsoidClothStats grown = jumpIntoProbes([](MovingScene& s) {
+		s.shape().addEllipsoid(btVector3(5, 0, 0), btMatrix3x3::getIdentity(), btVector3(0.1, 0.1, 0.1));
+	});
+	std::printf("moving jump: swept corrected %d pushed %d; after resetBodyPose %d / %d; after a count change %d / %d\n",
+				swept.m_nodesCorrected, swept.m_nodesPushedOut, reset.m_nodesCorrected, reset.m_nodesPushedOut,
+				grown.m_nodesCorrected, grown.m_nodesPushedOut);
+	CHECK(swept.m_nodesCorrected == 11);
+	CHECK(swept.m_nodesPushedOut == 0);
+	CHECK(reset.m_nodesCorrected == 0);
+	CHECK(reset.m_nodesPushedOut == 11);
+	CHECK(grown.m_nodesCorrected == 0);
+	CHECK(grown.m_nodesPushedOut == 11);
+}
