@@ -111,8 +111,10 @@ private:
 	void updateWorldCache(bool continuing);
 	/// Body surface velocity at a point of ellipsoid `ellipsoid` (-1: the body's rigid motion only).
 	btVector3 bodyVelocityAt(const btVector3& worldPoint, int ellipsoid, btScalar dt) const;
-	/// The node loop of a substep whose ellipsoids moved rigidly with the body (or not at all).
-	void collideNodes(btSoftBody* softBody, const btVector3* startPositions, const Substep& substep);
+	/// The same for the per-ellipsoid motion of a sweeping substep.
+	btVector3 sweptVelocityAt(const btVector3& worldPoint, int ellipsoid, btScalar dt) const;
+	/// The first of the candidates whose previous pose contains q (a start inside during a sweep).
+	int firstContaining(const btVector3& q, const int* cand, int nc) const;
 	/// The node loop of a substep whose ellipsoids moved by themselves (m_sweeping).
 	void collideSweptNodes(btSoftBody* softBody, const btVector3* startPositions, const Substep& substep);
 	bool collideNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep, btScalar& zeta);

@@ -158,7 +158,6 @@ struct btPathEntry
 	btScalar m_t;		   ///< its entry parameter along q -> x (kNoEntry if none)
 	btVector3 m_u;		   ///< the entry point in that ellipsoid's whitened coordinates
 	bool m_startInside;	   ///< q is inside some candidate (the path test does not apply then)
-	int m_startEllipsoid;  ///< the first candidate containing q (-1 if none)
 	btScalar m_minZetaEnd; ///< smallest zeta at x over the candidates
 };
 
@@ -211,7 +210,7 @@ BT_ELLIPSOID_ALWAYS_INLINE void btEarliestEntryWith(const Whitening &whiten, con
 	int best = -1;
 	btScalar tBest = kNoEntry;
 	btVector3 uBest(0, 0, 0);
-	int startInside = -1;
+	bool startInside = false;
 	btScalar zMinX = SIMD_INFINITY;
 	for (int j = 0; j < nc; ++j)
 	{
@@ -223,7 +222,7 @@ BT_ELLIPSOID_ALWAYS_INLINE void btEarliestEntryWith(const Whitening &whiten, con
 		tvals[j] = kNoEntry;
 		if (zq < btScalar(1))
 		{
-			startInside = startInside < 0 ? cand[j] : startInside;
+			startInside = true;
 			continue;
 		}
 		const btScalar d0 = ux[0] - uq[0], d1 = ux[1] - uq[1], d2 = ux[2] - uq[2];
@@ -241,8 +240,7 @@ BT_ELLIPSOID_ALWAYS_INLINE void btEarliestEntryWith(const Whitening &whiten, con
 	out.m_ellipsoid = best;
 	out.m_t = tBest;
 	out.m_u = uBest;
-	out.m_startInside = startInside >= 0;
-	out.m_startEllipsoid = startInside;
+	out.m_startInside = startInside;
 	out.m_minZetaEnd = zMinX;
 }
 
