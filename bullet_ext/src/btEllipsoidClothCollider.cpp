@@ -159,6 +159,8 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_hadPose(false),
 	  m_teleported(false),
 	  m_sweeping(false),
+	  m_sweepOnGrid(false),
+	  m_sweepMaxPath(0),
 	  m_dynamicBody(0),
 	  m_substepIndex(0),
 	  m_substepCount(1),
@@ -320,9 +322,13 @@ void btEllipsoidClothColliderCore::updateWorldCache(bool continuing)
 				 m_current.getRevision() != m_compound->getAnalyticRevision();
 	if (m_sweeping)
 		m_sweep.capture(m_current);
+	const int builds = m_current.getGridBuilds();
 	m_current.update(m_compound, m_currentPose);
 	if (m_sweeping)
 		m_sweeping = m_sweep.prepare(m_current);
+	m_sweepOnGrid = m_sweeping && !m_moving && m_current.getGridBuilds() == builds &&
+					m_current.getGridMargin() > btScalar(0) && !m_sweep.hasUnbounded();
+	m_sweepMaxPath = m_current.getCellSize();
 }
 
 void btEllipsoidClothColliderCore::endSubstep()
@@ -375,7 +381,8 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	btEllipsoidClothStats& stats = m_lastStats;
 	if (ne == 0 || softBody->m_nodes.size() == 0)
 		return;
-	Substep substep(m_current, btMax(m_config.m_skinOffset, btScalar(0)), dt);
+	Substep substep(m_current, btMax(m_config.m_skinOffset, btScalar(0)), dt, m_sweepOnGrid ? &m_sweep : 0,
+					m_sweepMaxPath);
 	// Bullet's own soft-rigid contact uses kDF x the body's friction (btSoftBody's rigid contacts); Config overrides.
 	substep.m_friction = m_config.m_friction >= btScalar(0) ? m_config.m_friction
 															: softBody->m_cfg.kDF * m_body->getFriction();
@@ -490,8 +497,11 @@ bool btEllipsoidClothColliderCore::collideSweptNode(btSoftBody::Node& node, cons
 													btScalar& zeta)
 {
 	const btVector3 x = node.m_x;
-	// 1. Broad phase over the swept boxes, grown by the bound of btEllipsoidSweep.cpp.
-	const int nc = m_sweep.candidates(q, x, substep.m_skin, substep.m_candidates);
+	// 1. Broad phase over the swept boxes, grown by the bound of btEllipsoidSweep.cpp: the static grid's lists when
+	// they hold every pose of the substep (m_sweepOnGrid) and the path is short, else the swept grid.
+	const int nc = m_sweepOnGrid && (x - q).length2() <= m_sweepMaxPath * m_sweepMaxPath
+					   ? substep.m_sweptQuery.candidates(q, x, substep.m_candidates)
+					   : m_sweep.candidates(q, x, substep.m_skin, substep.m_candidates);
 	if (nc == 0)
 		return false;
 	++m_lastStats.m_nodesTested;

@@ -57,6 +57,9 @@ private:
 	{
 		btEllipsoidWorldCache::PathQuery m_query;
 		btEllipsoidWorldCache::PathQuery m_contactQuery; ///< the ellipsoids within the contact band of a point
+		/// A sweep on the static grid (m_sweepOnGrid): its lists filtered by the swept boxes, every path grown by the
+		/// deviation bound of the longest path it takes (m_sweepMaxPath); otherwise unused.
+		btEllipsoidWorldCache::PathQuery m_sweptQuery;
 		btScalar m_skin;
 		btScalar m_band;     ///< contactBand(m_skin)
 		btScalar m_friction; ///< Coulomb coefficient for this soft body (Config's, or kDF x body friction)
@@ -64,9 +67,15 @@ private:
 		int* m_candidates;
 		btScalar* m_tvals;
 		int* m_contactCandidates;
-		Substep(const btEllipsoidWorldCache& cache, btScalar skin, btScalar dt)
+		Substep(const btEllipsoidWorldCache& cache, btScalar skin, btScalar dt, const btEllipsoidSweep* sweepOnGrid,
+				btScalar maxPath)
 			: m_query(cache, skin),
 			  m_contactQuery(cache, contactBand(skin)),
+			  m_sweptQuery(sweepOnGrid ? btEllipsoidWorldCache::PathQuery(cache, skin + sweepOnGrid->growthUpTo(maxPath),
+																		   sweepOnGrid->sweptBoxes(),
+																		   sweepOnGrid->unionMin(),
+																		   sweepOnGrid->unionMax())
+									   : btEllipsoidWorldCache::PathQuery(cache, skin)),
 			  m_skin(skin),
 			  m_band(contactBand(skin)),
 			  m_friction(0),
@@ -94,6 +103,11 @@ private:
 	bool m_teleported; ///< this substep follows resetBodyPose(): nodes left in pockets of the union are moved out
 	bool m_sweeping;   ///< the ellipsoids moved by themselves since the previous substep: per-ellipsoid motion
 	btEllipsoidSweep m_sweep; ///< their motion over this substep (valid while m_sweeping)
+	/// The sweep may use the static grid's lists: the body did not move rigidly and the grid, built with a margin, was
+	/// not rebuilt this substep, so it held every ellipsoid at its previous and current pose, hence (the drift from
+	/// the build pose is convex along the interpolation) at every pose in between.
+	bool m_sweepOnGrid;
+	btScalar m_sweepMaxPath; ///< paths up to this long (a grid cell) take the static grid; longer ones the swept grid
 	btRigidBody* m_dynamicBody; ///< the body when it takes the reaction impulses this substep (else 0)
 	int m_substepIndex;
 	int m_substepCount;

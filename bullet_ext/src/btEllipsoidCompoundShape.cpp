@@ -303,7 +303,8 @@ btEllipsoidWorldCache::btEllipsoidWorldCache()
 	  m_cellDilation(btScalar(0)),
 	  m_wideDilation(btScalar(0)),
 	  m_stampCounter(0),
-	  m_gridMargin(btScalar(0))
+	  m_gridMargin(btScalar(0)),
+	  m_gridBuilds(0)
 {
 	m_transform.setIdentity();
 	m_inverse.setIdentity();
@@ -406,6 +407,7 @@ void btEllipsoidWorldCache::buildGrid(bool animated)
 	for (int i = 0; i < n; ++i)
 		m_stamp[i] = 0;
 	m_stampCounter = 0;
+	++m_gridBuilds;
 	if (n == 0)
 	{
 		m_dims[0] = m_dims[1] = m_dims[2] = 0;
@@ -668,6 +670,18 @@ btEllipsoidWorldCache::PathQuery::PathQuery(const btEllipsoidWorldCache& cache, 
 	const btScalar roundingCells = SIMD_EPSILON * btScalar(16) * farthest * invCell;
 	m_dilation = cache.m_cellDilation - roundingCells;
 	m_wideDilation = cache.m_wideDilation - roundingCells;
+}
+
+btEllipsoidWorldCache::PathQuery::PathQuery(const btEllipsoidWorldCache& cache, btScalar radius, const btVector3* boxes,
+											 const btVector3& unionMin, const btVector3& unionMax)
+	: PathQuery(cache, radius)
+{
+	m_boxes = boxes;
+	if (m_count > 0)
+	{
+		m_unionMin = unionMin;
+		m_unionMax = unionMax;
+	}
 }
 
 int btEllipsoidWorldCache::PathQuery::walkCells(const btVector3& q, const btVector3& x, const btVector3& boxMin,

@@ -43,6 +43,18 @@ public:
 		return (radius + m_growthPerLength * ((x - q).length() + m_growthOffset)) * btScalar(1 + 1e-5);
 	}
 
+	/// The swept boxes ([2j] min, [2j + 1] max) and their union, for the static grid's lists (see the collider).
+	const btVector3* sweptBoxes() const { return m_boxes.size() ? &m_boxes[0] : 0; }
+	const btVector3& unionMin() const { return m_origin; }
+	const btVector3& unionMax() const { return m_unionMax; }
+	/// Some ellipsoid has no deviation bound (listed for every path).
+	bool hasUnbounded() const { return m_always.size() > 0; }
+	/// The growth of candidates() for any path no longer than `length` (radius excluded).
+	btScalar growthUpTo(btScalar length) const
+	{
+		return m_growthPerLength * (length + m_growthOffset) * btScalar(1 + 1e-5);
+	}
+
 	/// Cells along the longest side of the swept grid.
 	enum
 	{

@@ -80,6 +80,7 @@ struct Result
 	bodyfit::metrics::ContactMetrics contacts; // at the end (the scene runner's contact rule for the collider)
 	int firstMedianStep = 0; // medians are over steps [firstMedianStep, steps)
 	bool moving = false;     // --moving run: the mesh and the fit's ellipsoids are at rest, the collider's are not
+	double correctedPerStep = 0.0; // (a): median over the steps of the nodes the collider placed on the surface
 };
 
 const char* caseName(ColliderKind kind)
@@ -208,7 +209,7 @@ Result runCase(ColliderKind kind, const Settings& s, const bodyfit::drape::BodyD
 	r.settings = caseSettings(kind, s, body.ellipsoids.size());
 	r.nodes = sim.nodeCount();
 	std::unique_ptr<EllipsoidWiggle> wiggle(moving ? new EllipsoidWiggle(sim, s.movingMm * 1e-3) : nullptr);
-	std::vector<double> stepMs, collMs, colliderMs, wallStepMs, wallCollMs;
+	std::vector<double> stepMs, collMs, colliderMs, wallStepMs, wallCollMs, corrected;
 	for (int step = 0; step < s.steps; ++step)
 	{
 		if (wiggle)
@@ -219,6 +220,8 @@ Result runCase(ColliderKind kind, const Settings& s, const bodyfit::drape::BodyD
 		collMs.push_back(st.collisionCpuSeconds * 1e3);
 		colliderMs.push_back(st.colliderCpuSeconds * 1e3);
 		wallCollMs.push_back(st.collisionSeconds * 1e3);
+		if (sim.ellipsoidCollider())
+			corrected.push_back(sim.ellipsoidCollider()->getLastSubstepStats().m_nodesCorrected);
 		r.insideWorst = std::max(r.insideWorst, sim.sample().insideBody);
 		std::cerr << "  " << r.name << ": step " << step + 1 << "/" << s.steps << ", " << bodyfit_bench::fmt(stepMs.back(), 1)
 				  << " ms CPU\n";
@@ -239,6 +242,7 @@ Result runCase(ColliderKind kind, const Settings& s, const bodyfit::drape::BodyD
 	r.wallMsPerStep = contactMedian(wallStepMs);
 	r.wallCollisionMsPerStep = contactMedian(wallCollMs);
 	r.firstMedianStep = firstContact;
+	r.correctedPerStep = corrected.empty() ? 0.0 : contactMedian(corrected);
 	if (moving)
 	{
 		// The scene runner's samples measure against the body at rest; the moved ellipsoids' own check is the
@@ -378,7 +382,9 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 				  << bodyfit_bench::fmt(results[1].colliderMsPerStep / std::max(1e-9, results[0].colliderMsPerStep), 2)
 				  << "x (" << bodyfit_bench::fmt(results[1].colliderMsPerStep * 1e6 / std::max(1, results[1].nodes), 1)
 				  << " vs " << bodyfit_bench::fmt(results[0].colliderMsPerStep * 1e6 / std::max(1, results[0].nodes), 1)
-				  << " ns/node; median of " << s.repeats << " run(s))\n";
+				  << " ns/node; median of " << s.repeats << " run(s)); nodes placed on the surface per step (median) "
+				  << bodyfit_bench::fmt(results[1].correctedPerStep, 0) << " vs " << bodyfit_bench::fmt(results[0].correctedPerStep, 0)
+				  << "\n";
 	if (cases == "abc" && s.movingMm <= 0)
 		std::cout << "\ncollision speed-up of (a): "
 				  << bodyfit_bench::fmt(results[1].collisionMsPerStep / std::max(1e-9, results[0].collisionMsPerStep), 1)

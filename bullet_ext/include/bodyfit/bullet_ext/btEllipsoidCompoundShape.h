@@ -196,6 +196,12 @@ public:
 
 	/// World -> body frame (the grid's frame).
 	const btTransform& getInverseTransform() const { return m_inverse; }
+	/// Grid builds so far (an update that kept the grid leaves it unchanged).
+	int getGridBuilds() const { return m_gridBuilds; }
+	/// The margin the grid lists were built with (metres; 0 unless the compound is animated, see gridCovers).
+	btScalar getGridMargin() const { return m_gridMargin; }
+	/// Edge of a grid cell (metres).
+	btScalar getCellSize() const { return m_cell; }
 
 	/// Grid broadphase: indices of entries whose world box overlaps the world box [aabbMin, aabbMax], each once.
 	void query(const btVector3& aabbMin, const btVector3& aabbMax, btAlignedObjectArray<int>& out) const;
@@ -211,6 +217,11 @@ public:
 	public:
 		/// Prepares the query for the cache's current state and a radius >= 0 (the collider's skin offset).
 		PathQuery(const btEllipsoidWorldCache& cache, btScalar radius);
+		/// The same grid lists, filtered by other per-entry world boxes ([2i] min, [2i + 1] max, e.g. the region an
+		/// ellipsoid swept over a substep) inside the union box [unionMin, unionMax]: a superset of the entries whose
+		/// region meets the grown path, provided the lists hold every entry near its region (see gridCovers).
+		PathQuery(const btEllipsoidWorldCache& cache, btScalar radius, const btVector3* boxes, const btVector3& unionMin,
+				  const btVector3& unionMax);
 		/// Writes the candidates to out (room for size() indices) and returns their number; q and x must be finite
 		/// (the collider skips NaN/Inf nodes before). Inline (below): it
 		/// runs once per cloth node and substep.
@@ -310,6 +321,7 @@ private:
 	/// (metres, 0 for a compound seen once), so they stay valid while each ellipsoid stays within it of its pose at the
 	/// build (gridCovers); the build-time poses, in the body frame:
 	btScalar m_gridMargin;
+	int m_gridBuilds;
 	btAlignedObjectArray<btVector3> m_gridCenters;
 	btAlignedObjectArray<btMatrix3x3> m_gridUnwhiten; ///< R diag(a)
 
