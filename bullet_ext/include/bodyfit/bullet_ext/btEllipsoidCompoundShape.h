@@ -58,7 +58,7 @@ btEllipsoidLocalData
 /// each child, ray tests, the soft-body SDF path child by child). Next to the children it keeps the packed
 /// analytic array {c, R, a, Q} that the cloth collider reads; both always describe the same ellipsoids.
 ///
-/// Use addEllipsoid / setEllipsoid / removeEllipsoid to edit. Do not call the non-virtual
+/// Use addEllipsoid / setEllipsoid / setEllipsoids / removeEllipsoid to edit. Do not call the non-virtual
 /// btCompoundShape::addChildShape / removeChildShapeByIndex / updateChildTransform on it: they would bypass
 /// the analytic array (addChildShape with a non-ellipsoid child is rejected by the collider's checks).
 /// The compound owns its child shapes and deletes them.
@@ -139,7 +139,8 @@ public:
 /// World-space copy of a compound's ellipsoids for one body transform, plus the broadphase: a uniform grid in the
 /// body frame whose cells list the ellipsoids that (conservatively) meet them, so a moving body only re-places the
 /// entries, not the grid. update() is cheap when nothing changed (compares the transform and the compound's
-/// analytic revision).
+/// analytic revision). A compound that changes with the same count (animated: posed every substep) gets lists built
+/// with a margin, kept while every ellipsoid stays within it of its pose at the build.
 class btEllipsoidWorldCache
 {
 public:
@@ -298,7 +299,8 @@ private:
 	btVector3 m_aabbMin;
 	btVector3 m_aabbMax;
 
-	// uniform grid in the body (compound) frame, CSR lists; rebuilt only when the compound changes
+	// uniform grid in the body (compound) frame, CSR lists; rebuilt only when the compound changes (an animated
+	// compound: only when an ellipsoid left the lists' margin, see gridCovers)
 	enum
 	{
 		kGridCellsLongestSide = 32
