@@ -172,6 +172,9 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_moving(false),
 	  m_hadPose(false),
 	  m_teleported(false),
+	  m_sweeping(false),
+	  m_sweepOnGrid(false),
+	  m_sweepMaxPath(0),
 	  m_dynamicBody(0),
 	  m_substepIndex(0),
 	  m_substepCount(1),
@@ -273,10 +276,24 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 	btClock clock;
 	const double cpu0 = btThreadCpuSeconds();
 	m_substepDt = dt;
+	const bool continuing = m_havePose;
+	advanceBodyPose(continuing);
+	updateWorldCache(continuing);
+	btRigidBody* rigid = btRigidBody::upcast(m_body);
+	m_dynamicBody = m_config.m_applyReactionToBody && rigid && !rigid->isStaticOrKinematicObject() &&
+							rigid->getInvMass() > btScalar(0)
+						? rigid
+						: 0;
+	m_lastStats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
+	m_lastStats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
+}
+
+void btEllipsoidClothColliderCore::advanceBodyPose(bool continuing)
+{
 	const btTransform& now = m_body->getWorldTransform();
-	m_teleported = !m_havePose && m_hadPose;
+	m_teleported = !continuing && m_hadPose;
 	m_hadPose = true;
-	if (!m_havePose)
+	if (!continuing)
 	{
 		m_previousPose = now;
 		m_currentPose = now;
@@ -308,15 +325,27 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 		m_delta.setIdentity();
 		m_deltaInverse.setIdentity();
 	}
+}
+
+void btEllipsoidClothColliderCore::updateWorldCache(bool continuing)
+{
+	// The cache still holds the previous substep's ellipsoids: a changed compound with the same count is motion of
+	// every ellipsoid from there (after resetBodyPose or a count change it is a jump, not a sweep).
+	const int n = m_compound->getNumEllipsoids();
+	m_sweeping = continuing && n > 0 && m_current.getShape() == m_compound && m_current.size() == n &&
+				 m_current.getRevision() != m_compound->getAnalyticRevision();
+	if (m_sweeping)
+		m_sweep.capture(m_current);
+	const int builds = m_current.getGridBuilds();
 	m_current.update(m_compound, m_currentPose);
-	m_skinGeometry.begin(activeSkinField(), btMax(m_config.m_skinOffset, btScalar(0)), m_currentPose);
-	btRigidBody* rigid = btRigidBody::upcast(m_body);
-	m_dynamicBody = m_config.m_applyReactionToBody && rigid && !rigid->isStaticOrKinematicObject() &&
-							rigid->getInvMass() > btScalar(0)
-						? rigid
-						: 0;
-	m_lastStats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
-	m_lastStats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
+	if (m_sweeping)
+		m_sweeping = m_sweep.prepare(m_current);
+	m_sweepOnGrid = m_sweeping && !m_moving && m_current.getGridBuilds() == builds &&
+					m_current.getGridMargin() > btScalar(0) && !m_sweep.hasUnbounded();
+	m_sweepMaxPath = m_current.getCellSize();
+	// A field is baked for one shape of the body: while the ellipsoids move by themselves (a skinned body) it no
+	// longer describes the skin, and the sweep's ellipsoid response decides contact.
+	m_skinGeometry.begin(m_sweeping ? 0 : activeSkinField(), btMax(m_config.m_skinOffset, btScalar(0)), m_currentPose);
 }
 
 void btEllipsoidClothColliderCore::endSubstep()
@@ -342,11 +371,22 @@ void btEllipsoidClothColliderCore::restoreResponse()
 		softBodies[i]->m_collisionDisabledObjects.remove(m_body);
 }
 
-btVector3 btEllipsoidClothColliderCore::bodyVelocityAt(const btVector3& worldPoint, btScalar dt) const
+btVector3 btEllipsoidClothColliderCore::bodyVelocityAt(const btVector3& worldPoint, int ellipsoid, btScalar dt) const
 {
+	if (m_sweeping && ellipsoid >= 0)
+		return sweptVelocityAt(worldPoint, ellipsoid, dt);
 	if (!m_moving || !(dt > btScalar(0)))
 		return btVector3(0, 0, 0);
 	return (worldPoint - m_deltaInverse * worldPoint) / dt;
+}
+
+btVector3 btEllipsoidClothColliderCore::sweptVelocityAt(const btVector3& worldPoint, int ellipsoid, btScalar dt) const
+{
+	// p0 = c0 + U0 W1 (p - c1) is where the point was at the start of the substep (the rigid motion of the body is
+	// part of each ellipsoid's motion).
+	if (!(dt > btScalar(0)))
+		return btVector3(0, 0, 0);
+	return (worldPoint - m_sweep.previousPoint(m_current, ellipsoid, worldPoint)) / dt;
 }
 
 void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, const btVector3* startPositions)
@@ -358,7 +398,8 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	btEllipsoidClothStats& stats = m_lastStats;
 	if (ne == 0 || softBody->m_nodes.size() == 0)
 		return;
-	Substep substep(m_current, btMax(m_config.m_skinOffset, btScalar(0)), dt);
+	Substep substep(m_current, btMax(m_config.m_skinOffset, btScalar(0)), dt, m_sweepOnGrid ? &m_sweep : 0,
+					m_sweepMaxPath);
 	// Bullet's own soft-rigid contact uses kDF x the body's friction (btSoftBody's rigid contacts); Config overrides.
 	substep.m_friction = m_config.m_friction >= btScalar(0) ? m_config.m_friction
 															: softBody->m_cfg.kDF * m_body->getFriction();
@@ -368,9 +409,48 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	substep.m_tvals = &m_candidateT[0];
 	m_contactCandidates.resize(ne);
 	substep.m_contactCandidates = &m_contactCandidates[0];
-	const bool moving = m_moving;
-	const btTransform delta = m_delta;
+	if (m_sweeping)
+		collideSweptNodes(softBody, startPositions, substep);
+	else
+	{
+		// The rigid path, here rather than in a function of its own: with the Substep a local of this loop the
+		// compiler keeps the query's fields in registers (3.5% fewer instructions in the node loop).
+		const bool moving = m_moving;
+		const btTransform delta = m_delta;
+		btScalar minZeta = stats.m_minZeta;
+		const int numNodes = softBody->m_nodes.size();
+		btSoftBody::Node* nodes = &softBody->m_nodes[0];
+		for (int i = 0; i < numNodes; ++i)
+		{
+			btSoftBody::Node& node = nodes[i];
+			if (!(node.m_im > btScalar(0)))
+				continue;
+			btVector3 q = startPositions ? startPositions[i] : node.m_q;
+			if (!isFinite(node.m_x, q))
+			{
+				++stats.m_nonFiniteNodes;
+				continue;
+			}
+			// Start carried with the body from its previous to its current pose: the path is then straight in the
+			// body frame, and all tests run against the current world cache.
+			if (moving)
+				q = delta * q;
+			btScalar zeta;
+			if (collideNode(node, q, substep, zeta))
+				minZeta = btMin(minZeta, zeta);
+			if (m_teleported && !m_skinGeometry.field())
+				leavePocket(node, substep, minZeta);
+		}
+		stats.m_minZeta = minZeta;
+	}
+	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
+	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
+}
 
+void btEllipsoidClothColliderCore::collideSweptNodes(btSoftBody* softBody, const btVector3* startPositions,
+													 const Substep& substep)
+{
+	btEllipsoidClothStats& stats = m_lastStats;
 	btScalar minZeta = stats.m_minZeta;
 	const int numNodes = softBody->m_nodes.size();
 	btSoftBody::Node* nodes = &softBody->m_nodes[0];
@@ -379,25 +459,18 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 		btSoftBody::Node& node = nodes[i];
 		if (!(node.m_im > btScalar(0)))
 			continue;
-		btVector3 q = startPositions ? startPositions[i] : node.m_q;
+		const btVector3 q = startPositions ? startPositions[i] : node.m_q;
 		if (!isFinite(node.m_x, q))
 		{
 			++stats.m_nonFiniteNodes;
 			continue;
 		}
-		// Start carried with the body from its previous to its current pose: the path is then straight in the
-		// body frame, and all tests run against the current world cache.
-		if (moving)
-			q = delta * q;
+		// Every ellipsoid moved by itself: the start is carried per candidate (collideSweptNode), not by the body.
 		btScalar zeta;
-		if (collideNode(node, q, substep, zeta))
+		if (collideSweptNode(node, q, substep, zeta))
 			minZeta = btMin(minZeta, zeta);
-		if (m_teleported && !m_skinGeometry.field())
-			leavePocket(node, substep, minZeta);
 	}
 	stats.m_minZeta = minZeta;
-	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
-	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
 }
 
 BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep,
@@ -439,6 +512,109 @@ BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoft
 	return true;
 }
 
+bool btEllipsoidClothColliderCore::collideSweptNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep,
+													btScalar& zeta)
+{
+	const btVector3 x = node.m_x;
+	// 1. Broad phase over the swept boxes, grown by the bound of btEllipsoidSweep.cpp: the static grid's lists when
+	// they hold every pose of the substep (m_sweepOnGrid) and the path is short, else the swept grid.
+	const int nc = m_sweepOnGrid && (x - q).length2() <= m_sweepMaxPath * m_sweepMaxPath
+					   ? substep.m_sweptQuery.candidates(q, x, substep.m_candidates)
+					   : m_sweep.candidates(q, x, substep.m_skin, substep.m_candidates);
+	if (nc == 0)
+		return false;
+	++m_lastStats.m_nodesTested;
+	// 2. Narrow phase in each candidate's moving frame: u_q = W0 (q - c0) -> u_x = W1 (x - c1).
+	btPathEntry entry;
+	const btPathEnds ends(q, x);
+	const btSweptPathWhitening whiten = {m_sweep.previousRecords(), m_current.getPackedRecords(), ends};
+	btEarliestEntryWith(whiten, substep.m_candidates, nc, substep.m_tvals, entry);
+	if (entry.m_startInside)
+	{
+		// q was inside an ellipsoid's previous pose (a bad start): as the static path, keep x if the solve brought
+		// it out, else push it out of the current union.
+		if (entry.m_minZetaEnd >= btScalar(1))
+		{
+			zeta = entry.m_minZetaEnd;
+			return true;
+		}
+		++m_lastStats.m_nodesPushedOut;
+		bool moved;
+		zeta = pushNodeOut(node, x, m_sweep.carry(m_current, firstContaining(q, substep.m_candidates, nc), q), substep,
+						   moved);
+		return true;
+	}
+	zeta = entry.m_minZetaEnd; // the candidates hold every current ellipsoid near x (swept box >= current box)
+	if (entry.m_ellipsoid < 0)
+		return true;
+	++m_lastStats.m_nodesCorrected;
+	// 3. Response from the start carried by the ellipsoid that met the node first (earliest in time: s is the same
+	// in every moving frame). When the carried path q_j -> x, grown by the skin, lies in the box the candidates were
+	// listed for, they hold every current ellipsoid the placement can meet; else the phases run again from q_j.
+	const btVector3 start = m_sweep.carry(m_current, entry.m_ellipsoid, q);
+	if (carriedPathCovered(q, x, start, substep.m_skin))
+		zeta = respondAtEntry(node, entry, start, nc, substep);
+	else
+		zeta = respondToSweep(node, entry, q, substep);
+	return true;
+}
+
+int btEllipsoidClothColliderCore::firstContaining(const btVector3& q, const int* cand, int nc) const
+{
+	const btScalar* previous = m_sweep.previousRecords();
+	for (int j = 0; j < nc; ++j)
+	{
+		btScalar u[3];
+		btWhitenPacked(previous + btEllipsoidWorldCache::kPackedStride * cand[j], q.x(), q.y(), q.z(), u);
+		if (u[0] * u[0] + u[1] * u[1] + u[2] * u[2] < btScalar(1))
+			return cand[j];
+	}
+	return cand[0]; // (the SSE path test rounded differently: any candidate's motion will do)
+}
+
+bool btEllipsoidClothColliderCore::carriedPathCovered(const btVector3& q, const btVector3& x, const btVector3& start,
+													  btScalar skin) const
+{
+	const btScalar slack = m_sweep.growth(q, x, skin) - skin;
+	for (int k = 0; k < 3; ++k)
+	{
+		const btScalar lo = btMin(q[k], x[k]) - slack, hi = btMax(q[k], x[k]) + slack;
+		if (!(start[k] >= lo && start[k] <= hi))
+			return false;
+	}
+	return true;
+}
+
+btScalar btEllipsoidClothColliderCore::respondToSweep(btSoftBody::Node& node, const btPathEntry& swept,
+													  const btVector3& q, const Substep& substep)
+{
+	// From the start carried by the sweeping ellipsoid the path q_j -> x is straight against its current pose and
+	// enters it at the same parameter; the static phases then place the node against every current ellipsoid.
+	const int j = swept.m_ellipsoid;
+	const btVector3 start = m_sweep.carry(m_current, j, q);
+	const btVector3 x = node.m_x;
+	const int nc = substep.m_query.candidates(start, x, substep.m_candidates);
+	btPathEntry entry;
+	btEarliestEntry(m_current.getPackedRecords(), substep.m_candidates, nc, btPathEnds(start, x), substep.m_tvals, entry);
+	if (!entry.m_startInside && entry.m_ellipsoid >= 0)
+		return respondAtEntry(node, entry, start, nc, substep);
+	if (!entry.m_startInside && entry.m_minZetaEnd >= btScalar(1))
+		return entry.m_minZetaEnd; // the carried path only grazes j (rounding): x is outside
+	// The carried start lies inside another ellipsoid (two parts moving differently), or rounding lost the entry:
+	// out of the union from the sweeping ellipsoid's surface point, ahead of it (x may be behind it).
+	const btEllipsoidWorldCache::Entry& e = m_current[j];
+	const btScalar ul = swept.m_u.length();
+	const btVector3 uHit = ul > btScalar(0) ? swept.m_u / ul : btVector3(1, 0, 0);
+	const btVector3 surface = e.m_center + e.m_unwhiten * uHit;
+	++m_lastStats.m_nodesPushedOut;
+	bool moved;
+	const btScalar zeta = pushNodeOut(node, surface, start, substep, moved);
+	if (!moved)
+		respondVelocity(node, btWhitenedNormal(e.m_whiten, uHit).normalized(), surface, start, e.m_center, j, substep,
+						btScalar(0));
+	return zeta;
+}
+
 void btEllipsoidClothColliderCore::leavePocket(btSoftBody::Node& node, const Substep& substep, btScalar& minZeta)
 {
 	const btVector3 lo = m_current.getAabbMin(), hi = m_current.getAabbMax();
@@ -453,8 +629,8 @@ void btEllipsoidClothColliderCore::leavePocket(btSoftBody::Node& node, const Sub
 	++m_lastStats.m_pushOutEnclosed;
 	const btVector3 start = node.m_x;
 	node.m_x = out.m_point;
-	respondVelocity(node, out.m_normal, out.m_point - out.m_normal * substep.m_skin, start, out.m_center, substep,
-					btScalar(0));
+	respondVelocity(node, out.m_normal, out.m_point - out.m_normal * substep.m_skin, start, out.m_center,
+					out.m_ellipsoid, substep, btScalar(0));
 	minZeta = btMin(minZeta, out.m_zeta);
 }
 
@@ -474,17 +650,27 @@ btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, co
 		bool moved;
 		zeta = pushNodeOut(node, point, q, substep, moved);
 		if (!moved)
-			respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, substep, btScalar(0));
+			respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, entry.m_ellipsoid, substep,
+							btScalar(0));
 		return zeta;
 	}
 	node.m_x = point;
-	if (respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, substep, btScalar(1) - entry.m_t))
+	// After a sweep the start is carried by the sweeping ellipsoid and may lie far ahead of its surface: a node
+	// held there would float ahead of it, so only a start within the contact band (a resting node) holds it.
+	if (respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, entry.m_ellipsoid, substep,
+						btScalar(1) - entry.m_t) &&
+		(!m_sweeping || btClearance(m_current[entry.m_ellipsoid], q) <= substep.m_band))
 	{
 		// Held by static friction (or moving straight in): the node stays where it started the substep, outside
 		// every candidate (the path test found q outside). The entry point lies down the path, and a node placed
 		// there every substep crept downhill under any friction.
-		node.m_x = q;
-		zeta = btMinZetaPacked(m_current.getPackedRecords(), substep.m_candidates, nc, q, 0);
+		const btScalar zetaStart = btMinZetaPacked(m_current.getPackedRecords(), substep.m_candidates, nc, q, 0);
+		// (A start carried by one of several moving ellipsoids may lie inside another: then it is not held.)
+		if (zetaStart >= btScalar(1))
+		{
+			node.m_x = q;
+			zeta = zetaStart;
+		}
 	}
 	return zeta;
 }
@@ -503,21 +689,22 @@ btScalar btEllipsoidClothColliderCore::pushNodeOut(btSoftBody::Node& node, const
 	m_lastStats.m_pushOutEnclosed += out.m_enclosed ? 1 : 0;
 	m_lastStats.m_pushOutFallbacks += out.m_fallback ? 1 : 0;
 	node.m_x = out.m_point;
-	respondVelocity(node, out.m_normal, out.m_point - out.m_normal * substep.m_skin, start, out.m_center, substep,
-					btScalar(0));
+	respondVelocity(node, out.m_normal, out.m_point - out.m_normal * substep.m_skin, start, out.m_center,
+					out.m_ellipsoid, substep, btScalar(0));
 	return out.m_zeta;
 }
 
 bool btEllipsoidClothColliderCore::respondVelocity(btSoftBody::Node& node, const btVector3& normal,
 												   const btVector3& surface, const btVector3& start,
-												   const btVector3& center, const Substep& substep, btScalar remaining)
+												   const btVector3& center, int ellipsoid, const Substep& substep,
+												   btScalar remaining)
 {
 	// Every surface the node now touches, so no velocity into a second ellipsoid of a crease survives.
 	btNodeContacts contacts;
 	contacts.add(normal);
 	const int nt = substep.m_contactQuery.candidates(node.m_x, node.m_x, substep.m_contactCandidates);
 	btAddTouchingNormals(m_current, substep.m_contactCandidates, nt, node.m_x, substep.m_band, contacts);
-	const btVector3 bodyVelocity = bodyVelocityAt(surface, substep.m_dt);
+	const btVector3 bodyVelocity = bodyVelocityAt(surface, ellipsoid, substep.m_dt);
 	const btVector3 before = node.m_v;
 	const btVector3 relative = node.m_v - bodyVelocity;
 	btVector3 vr = btRelativeVelocityAfterContact(m_config.m_velocityRule, substep.m_friction, relative, contacts,

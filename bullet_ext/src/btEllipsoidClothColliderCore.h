@@ -11,6 +11,7 @@ public header shows only btEllipsoidClothCollider. Tests that craft node paths b
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 
 #include "src/btEllipsoidNarrowPhase.h"
+#include "src/btEllipsoidSweep.h"
 #include "src/btSkinFieldResponse.h"
 #include "src/btEllipsoidUnionPushOut.h"
 
@@ -61,6 +62,9 @@ private:
 	{
 		btEllipsoidWorldCache::PathQuery m_query;
 		btEllipsoidWorldCache::PathQuery m_contactQuery; ///< the ellipsoids within the contact band of a point
+		/// A sweep on the static grid (m_sweepOnGrid): its lists filtered by the swept boxes, every path grown by the
+		/// deviation bound of the longest path it takes (m_sweepMaxPath); otherwise unused.
+		btEllipsoidWorldCache::PathQuery m_sweptQuery;
 		btScalar m_skin;
 		btScalar m_band;     ///< contactBand(m_skin)
 		btScalar m_friction; ///< Coulomb coefficient for this soft body (Config's, or kDF x body friction)
@@ -68,9 +72,15 @@ private:
 		int* m_candidates;
 		btScalar* m_tvals;
 		int* m_contactCandidates;
-		Substep(const btEllipsoidWorldCache& cache, btScalar skin, btScalar dt)
+		Substep(const btEllipsoidWorldCache& cache, btScalar skin, btScalar dt, const btEllipsoidSweep* sweepOnGrid,
+				btScalar maxPath)
 			: m_query(cache, skin),
 			  m_contactQuery(cache, contactBand(skin)),
+			  m_sweptQuery(sweepOnGrid ? btEllipsoidWorldCache::PathQuery(cache, skin + sweepOnGrid->growthUpTo(maxPath),
+																		   sweepOnGrid->sweptBoxes(),
+																		   sweepOnGrid->unionMin(),
+																		   sweepOnGrid->unionMax())
+									   : btEllipsoidWorldCache::PathQuery(cache, skin)),
 			  m_skin(skin),
 			  m_band(contactBand(skin)),
 			  m_friction(0),
@@ -96,6 +106,13 @@ private:
 	bool m_moving;
 	bool m_hadPose;    ///< some substep has run (a later resetBodyPose() is a teleport)
 	bool m_teleported; ///< this substep follows resetBodyPose(): nodes left in pockets of the union are moved out
+	bool m_sweeping;   ///< the ellipsoids moved by themselves since the previous substep: per-ellipsoid motion
+	btEllipsoidSweep m_sweep; ///< their motion over this substep (valid while m_sweeping)
+	/// The sweep may use the static grid's lists: the body did not move rigidly and the grid, built with a margin, was
+	/// not rebuilt this substep, so it held every ellipsoid at its previous and current pose, hence (the drift from
+	/// the build pose is convex along the interpolation) at every pose in between.
+	bool m_sweepOnGrid;
+	btScalar m_sweepMaxPath; ///< paths up to this long (a grid cell) take the static grid; longer ones the swept grid
 	btRigidBody* m_dynamicBody; ///< the body when it takes the reaction impulses this substep (else 0)
 	int m_substepIndex;
 	int m_substepCount;
@@ -107,8 +124,29 @@ private:
 	btSkinFieldGeometry m_skinGeometry; ///< tight mode this substep (its field is 0 in ELLIPSOIDS mode)
 
 	btTransform interpolatedKinematicPose();
-	btVector3 bodyVelocityAt(const btVector3& worldPoint, btScalar dt) const;
+	/// Moves the body pose forward by one substep (m_previousPose, m_currentPose, m_delta).
+	void advanceBodyPose(bool continuing);
+	/// Updates the world cache; when the compound changed with the same count since a substep that had a pose,
+	/// prepares the per-ellipsoid motion (m_sweeping).
+	void updateWorldCache(bool continuing);
+	/// Body surface velocity at a point of ellipsoid `ellipsoid` (-1: the body's rigid motion only).
+	btVector3 bodyVelocityAt(const btVector3& worldPoint, int ellipsoid, btScalar dt) const;
+	/// The same for the per-ellipsoid motion of a sweeping substep.
+	btVector3 sweptVelocityAt(const btVector3& worldPoint, int ellipsoid, btScalar dt) const;
+	/// The first of the candidates whose previous pose contains q (a start inside during a sweep).
+	int firstContaining(const btVector3& q, const int* cand, int nc) const;
+	/// The node loop of a substep whose ellipsoids moved by themselves (m_sweeping).
+	void collideSweptNodes(btSoftBody* softBody, const btVector3* startPositions, const Substep& substep);
 	bool collideNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep, btScalar& zeta);
+	/// The node with its uncarried start q when the ellipsoids moved by themselves: the path test in each
+	/// candidate's moving frame (btEllipsoidSweep), then respondToSweep.
+	bool collideSweptNode(btSoftBody::Node& node, const btVector3& q, const Substep& substep, btScalar& zeta);
+	/// The node was swept by ellipsoid `swept.m_ellipsoid`: its start carried by that ellipsoid's motion, the static
+	/// response from there against the current ellipsoids (pushed out ahead of the sweeping one if that start is
+	/// inside another).
+	btScalar respondToSweep(btSoftBody::Node& node, const btPathEntry& swept, const btVector3& q, const Substep& substep);
+	/// The carried path start -> x grown by the skin lies in the box the swept candidates of q -> x were listed for.
+	bool carriedPathCovered(const btVector3& q, const btVector3& x, const btVector3& start, btScalar skin) const;
 	/// After a teleport: a node outside every ellipsoid but in a pocket the union encloses leaves it.
 	void leavePocket(btSoftBody::Node& node, const Substep& substep, btScalar& minZeta);
 	btScalar respondAtEntry(btSoftBody::Node& node, const btPathEntry& entry, const btVector3& q, int nc,
@@ -122,7 +160,8 @@ private:
 	/// \return true if the contact stopped a moving node (zero relative velocity after it: held by static friction,
 	/// or moving straight in); the caller then keeps the node at its start.
 	bool respondVelocity(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface,
-						 const btVector3& start, const btVector3& center, const Substep& substep, btScalar remaining);
+						 const btVector3& start, const btVector3& center, int ellipsoid, const Substep& substep,
+						 btScalar remaining);
 	/// Moves the node by `displacement` if that path enters no ellipsoid.
 	void slideAlong(btSoftBody::Node& node, const btVector3& displacement, const Substep& substep);
 

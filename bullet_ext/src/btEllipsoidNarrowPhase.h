@@ -161,11 +161,50 @@ struct btPathEntry
 	btScalar m_minZetaEnd; ///< smallest zeta at x over the candidates
 };
 
-/// The path test of one node: for every candidate the entry parameter t of q -> x (kNoEntry for none or a start
-/// inside it, written to tvals[j]); the earliest entry in [0, 1] wins (the first listed on exact ties). An end inside
-/// whose root rounding lost counts as an entry at t = 1.
-BT_ELLIPSOID_ALWAYS_INLINE void btEarliestEntry(const btScalar *packed, const int *cand, int nc, const btPathEnds &ends,
-												btScalar *tvals, btPathEntry &out)
+/// Both ends of the path in the whitened coordinates of entry k: the static path, both ends with the same record.
+struct btStaticPathWhitening
+{
+	const btScalar *m_packed;
+	const btPathEnds &m_ends;
+	BT_ELLIPSOID_ALWAYS_INLINE void operator()(int k, btScalar uq[3], btScalar ux[3]) const
+	{
+		btWhitenPath(m_ends, m_packed + btEllipsoidWorldCache::kPackedStride * k, uq, ux);
+	}
+};
+
+/// The path in the moving frame of entry k (an ellipsoid that moved by itself over the substep): the start in the
+/// ellipsoid's previous coordinates u_q = W0 (q - c0), the end in its current ones u_x = W1 (x - c1).
+struct btSweptPathWhitening
+{
+	const btScalar *m_previous; ///< packed records of the previous substep (same layout as the cache's)
+	const btScalar *m_current;
+	const btPathEnds &m_ends;
+	BT_ELLIPSOID_ALWAYS_INLINE void operator()(int k, btScalar uq[3], btScalar ux[3]) const
+	{
+		const int o = btEllipsoidWorldCache::kPackedStride * k;
+#ifdef BT_ELLIPSOID_SSE_PATH
+		const btScalar *p = m_previous + o, *c = m_current + o;
+		float uqs[4], uxs[4];
+		_mm_storeu_ps(uqs, btWhitenLanes(m_ends.m_qVec, _mm_loadu_ps(p), _mm_loadu_ps(p + 4), _mm_loadu_ps(p + 8),
+										 _mm_loadu_ps(p + 12)));
+		_mm_storeu_ps(uxs, btWhitenLanes(m_ends.m_xVec, _mm_loadu_ps(c), _mm_loadu_ps(c + 4), _mm_loadu_ps(c + 8),
+										 _mm_loadu_ps(c + 12)));
+		uq[0] = uqs[0], uq[1] = uqs[1], uq[2] = uqs[2];
+		ux[0] = uxs[0], ux[1] = uxs[1], ux[2] = uxs[2];
+#else
+		btWhitenPacked(m_previous + o, m_ends.m_q[0], m_ends.m_q[1], m_ends.m_q[2], uq);
+		btWhitenPacked(m_current + o, m_ends.m_x[0], m_ends.m_x[1], m_ends.m_x[2], ux);
+#endif
+	}
+};
+
+/// The path test of one node: for every candidate the entry parameter t of the whitened segment u_q -> u_x into the
+/// unit ball (kNoEntry for none or a start inside it, written to tvals[j]); the earliest entry in [0, 1] wins (the
+/// first listed on exact ties). An end inside whose root rounding lost counts as an entry at t = 1. `whiten` gives
+/// u_q and u_x of a candidate (btStaticPathWhitening or btSweptPathWhitening).
+template <class Whitening>
+BT_ELLIPSOID_ALWAYS_INLINE void btEarliestEntryWith(const Whitening &whiten, const int *cand, int nc, btScalar *tvals,
+													btPathEntry &out)
 {
 	// Locals in the loop (out is written once at the end: stores to tvals could alias its fields).
 	int best = -1;
@@ -176,7 +215,7 @@ BT_ELLIPSOID_ALWAYS_INLINE void btEarliestEntry(const btScalar *packed, const in
 	for (int j = 0; j < nc; ++j)
 	{
 		btScalar uq[3], ux[3];
-		btWhitenPath(ends, packed + btEllipsoidWorldCache::kPackedStride * cand[j], uq, ux);
+		whiten(cand[j], uq, ux);
 		const btScalar zx = ux[0] * ux[0] + ux[1] * ux[1] + ux[2] * ux[2];
 		const btScalar zq = uq[0] * uq[0] + uq[1] * uq[1] + uq[2] * uq[2];
 		zMinX = btMin(zMinX, zx);
@@ -203,6 +242,14 @@ BT_ELLIPSOID_ALWAYS_INLINE void btEarliestEntry(const btScalar *packed, const in
 	out.m_u = uBest;
 	out.m_startInside = startInside;
 	out.m_minZetaEnd = zMinX;
+}
+
+/// The static path test (btEarliestEntryWith): both ends against the cache's current ellipsoids.
+BT_ELLIPSOID_ALWAYS_INLINE void btEarliestEntry(const btScalar *packed, const int *cand, int nc, const btPathEnds &ends,
+												btScalar *tvals, btPathEntry &out)
+{
+	const btStaticPathWhitening whiten = {packed, ends};
+	btEarliestEntryWith(whiten, cand, nc, tvals, out);
 }
 
 /// W^T u for a matrix W stored by rows: the (unnormalised) outward normal at the point whose whitened coordinates

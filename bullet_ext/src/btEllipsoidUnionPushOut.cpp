@@ -54,6 +54,7 @@ void btEllipsoidUnionPushOut::pushOut(const btEllipsoidWorldCache& cache, const 
 	m_cache = &cache;
 	out.m_enclosed = false;
 	out.m_fallback = false;
+	out.m_ellipsoid = -1;
 	btVector3 dirs[kMaxDirections];
 	const int ndirs = candidateDirections(from, dirs);
 	if (ndirs == 0)
@@ -105,6 +106,7 @@ void btEllipsoidUnionPushOut::finishExit(const btVector3& point, const btVector3
 	out.m_zeta = minZetaAll(*m_cache, point, 0);
 	out.m_normal = dir;
 	out.m_center = exitEllipsoid >= 0 ? (*m_cache)[exitEllipsoid].m_center : from;
+	out.m_ellipsoid = exitEllipsoid;
 	if (exitEllipsoid >= 0)
 	{
 		const btEllipsoidWorldCache::Entry& e = (*m_cache)[exitEllipsoid];
@@ -122,6 +124,7 @@ void btEllipsoidUnionPushOut::leaveEnclosedPocket(const btEllipsoidWorldCache& c
 	out.m_moved = false;
 	out.m_enclosed = false;
 	out.m_fallback = false;
+	out.m_ellipsoid = -1;
 	out.m_point = from;
 	out.m_zeta = minZetaAll(cache, from, 0);
 	if (escapesUnion(from, latticeDirection(0)))

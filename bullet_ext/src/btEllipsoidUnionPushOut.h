@@ -20,6 +20,7 @@ struct btPushOutResult
 	btVector3 m_point;  ///< the node's new position (outside every ellipsoid, the skin included)
 	btVector3 m_normal; ///< outward normal at the exit
 	btVector3 m_center; ///< centre of the ellipsoid the node left (the start point when unknown), for eq. 10
+	int m_ellipsoid;    ///< index of that ellipsoid, -1 when unknown (not moved, or the union-box fallback)
 	btScalar m_zeta;    ///< smallest zeta at the final point over the ellipsoids whose box holds it
 	bool m_enclosed;    ///< every nearest exit led into a pocket enclosed by the union: left past the last chord
 	bool m_fallback;    ///< no ray realised an exit: left the union's box (not seen in 1e7 random cases)

@@ -282,7 +282,7 @@ bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const b
 {
 	btNodeContacts contacts;
 	contacts.add(normal);
-	const btVector3 bodyVelocity = bodyVelocityAt(surface, substep.m_dt);
+	const btVector3 bodyVelocity = bodyVelocityAt(surface, -1, substep.m_dt);
 	const btVector3 before = node.m_v;
 	const btVector3 relative = node.m_v - bodyVelocity;
 	btVector3 vr = btRelativeVelocityAfterContact(m_config.m_velocityRule, substep.m_friction, relative, contacts,

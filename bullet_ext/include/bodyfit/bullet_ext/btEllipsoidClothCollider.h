@@ -70,6 +70,15 @@ struct btEllipsoidClothStats
 /// substeps of one stepSimulation call from the velocity Bullet computes in saveKinematicState) and dynamic
 /// bodies (pose read every substep). A plain btCollisionObject moved by hand jumps to its new pose in the first
 /// substep after the move, and its previous pose is still used for the path test.
+/// Moving ellipsoids (a skinned body posed every substep through btEllipsoidCompoundShape::setEllipsoids or
+/// setEllipsoid, e.g. from an internal pre-tick callback): when the compound's analytic revision changed since the
+/// previous substep and its ellipsoid count did not, every ellipsoid j is taken to move from its previous world
+/// geometry (c0, U0 = R0 diag(a0)) to its current one (c1, U1), the body's rigid motion included. The path test of
+/// candidate j runs in j's moving frame (u_q = W0 (q - c0) to u_x = W1 (x - c1) against the unit ball), so a node
+/// an ellipsoid sweeps over is pushed out ahead of it; the body-surface velocity at a contact on j is (p - p0) / dt,
+/// p0 = c0 + U0 W1 (p - c1). The broad phase grows each path by a bound on how far the moving-frame path strays from
+/// q -> x (bullet_ext/README.md, "Moving ellipsoids"); push-out and the guarantee use the current ellipsoids.
+/// resetBodyPose() and a count change forget the previous geometry (the next substep is a jump, not a sweep).
 ///
 /// Installed and driven by btEllipsoidClothSoftBodySolver (installCollider); the substep protocol is internal.
 /// Supported worlds: btSoftRigidDynamicsWorld (and subclasses) built with btEllipsoidClothSoftBodySolver.
@@ -172,8 +181,8 @@ public:
 	/// World-space ellipsoids at the body's current pose (as used in the last substep).
 	const btEllipsoidWorldCache& getWorldCache() const { return m_current; }
 
-	/// Forget the body's previous pose: call after teleporting the body, so the next substep does not treat the
-	/// jump as motion that sweeps the cloth along.
+	/// Forget the body's previous pose and its ellipsoids' previous geometry: call after teleporting the body or
+	/// jumping its pose, so the next substep does not treat the jump as motion that sweeps the cloth along.
 	void resetBodyPose() { m_havePose = false; }
 
 	virtual ~btEllipsoidClothCollider();

@@ -59,7 +59,7 @@ btEllipsoidLocalData
 /// each child, ray tests, the soft-body SDF path child by child). Next to the children it keeps the packed
 /// analytic array {c, R, a, Q} that the cloth collider reads; both always describe the same ellipsoids.
 ///
-/// Use addEllipsoid / setEllipsoid / removeEllipsoid to edit. Do not call the non-virtual
+/// Use addEllipsoid / setEllipsoid / setEllipsoids / removeEllipsoid to edit. Do not call the non-virtual
 /// btCompoundShape::addChildShape / removeChildShapeByIndex / updateChildTransform on it: they would bypass
 /// the analytic array (addChildShape with a non-ellipsoid child is rejected by the collider's checks).
 /// The compound owns its child shapes and deletes them.
@@ -77,6 +77,8 @@ protected:
 	bool m_ownsSkinField;
 
 	void computeLocalData(int index);
+	/// The as-given geometry of ellipsoid `index` (basis and semi-axes sanitised as addEllipsoid does).
+	void storeUnscaled(int index, const btVector3& center, const btMatrix3x3& basis, const btVector3& semiAxes);
 	/// Semi-axes and basis of ellipsoid `index` under the current local scaling.
 	void scaledGeometry(int index, btVector3* scaledAxes, btMatrix3x3* scaledBasis) const;
 	/// The packed analytic data of ellipsoid `index` from its child transform `t` and child semi-axes.
@@ -98,8 +100,17 @@ public:
 	/// if slightly off; a reflection is turned into a rotation by flipping the third axis)
 	/// \return its index (equal to the child index)
 	int addEllipsoid(const btVector3& center, const btMatrix3x3& basis, const btVector3& semiAxes);
-	/// Replaces ellipsoid i (child shape, child transform, analytic data, local AABB, dynamic AABB tree).
+	/// Replaces ellipsoid i (child shape, child transform, analytic data, local AABB, dynamic AABB tree). The local
+	/// AABB is recomputed over all children, so n calls cost O(n^2); setEllipsoids does the same in O(n).
 	void setEllipsoid(int index, const btVector3& center, const btMatrix3x3& basis, const btVector3& semiAxes);
+	/// Replaces every ellipsoid in one pass, for a driver that poses the body every substep (a skinned character):
+	/// each child's semi-axes and transform, its leaf of the dynamic AABB tree and its analytic data; then the local
+	/// AABB once and one revision bump (the cloth collider then treats the change as motion of every ellipsoid from
+	/// its previous pose, see btEllipsoidClothCollider.h). The arguments are as for setEllipsoid, one per ellipsoid.
+	/// \return false (nothing changed, *error set to a one-line reason if error is not 0) when count differs from
+	/// getNumEllipsoids() or an array is null.
+	bool setEllipsoids(int count, const btVector3* centers, const btMatrix3x3* bases, const btVector3* semiAxes,
+					   const char** error = 0);
 	/// Removes ellipsoid i; the last ellipsoid takes index i (as btCompoundShape::removeChildShapeByIndex).
 	void removeEllipsoid(int index);
 
@@ -146,7 +157,8 @@ public:
 /// World-space copy of a compound's ellipsoids for one body transform, plus the broadphase: a uniform grid in the
 /// body frame whose cells list the ellipsoids that (conservatively) meet them, so a moving body only re-places the
 /// entries, not the grid. update() is cheap when nothing changed (compares the transform and the compound's
-/// analytic revision).
+/// analytic revision). A compound that changes with the same count (animated: posed every substep) gets lists built
+/// with a margin, kept while every ellipsoid stays within it of its pose at the build.
 class btEllipsoidWorldCache
 {
 public:
@@ -183,6 +195,8 @@ public:
 	const Entry& operator[](int i) const { return m_entries[i]; }
 	const btTransform& getTransform() const { return m_transform; }
 	const btEllipsoidCompoundShape* getShape() const { return m_shape; }
+	/// The compound's analytic revision the entries were computed from (-1 before the first update).
+	int getRevision() const { return m_revision; }
 	/// Union of all entry boxes.
 	const btVector3& getAabbMin() const { return m_aabbMin; }
 	const btVector3& getAabbMax() const { return m_aabbMax; }
@@ -201,6 +215,12 @@ public:
 
 	/// World -> body frame (the grid's frame).
 	const btTransform& getInverseTransform() const { return m_inverse; }
+	/// Grid builds so far (an update that kept the grid leaves it unchanged).
+	int getGridBuilds() const { return m_gridBuilds; }
+	/// The margin the grid lists were built with (metres; 0 unless the compound is animated, see gridCovers).
+	btScalar getGridMargin() const { return m_gridMargin; }
+	/// Edge of a grid cell (metres).
+	btScalar getCellSize() const { return m_cell; }
 
 	/// Grid broadphase: indices of entries whose world box overlaps the world box [aabbMin, aabbMax], each once.
 	void query(const btVector3& aabbMin, const btVector3& aabbMax, btAlignedObjectArray<int>& out) const;
@@ -216,10 +236,29 @@ public:
 	public:
 		/// Prepares the query for the cache's current state and a radius >= 0 (the collider's skin offset).
 		PathQuery(const btEllipsoidWorldCache& cache, btScalar radius);
+		/// The same grid lists, filtered by other per-entry world boxes ([2i] min, [2i + 1] max, e.g. the region an
+		/// ellipsoid swept over a substep) inside the union box [unionMin, unionMax]: a superset of the entries whose
+		/// region meets the grown path, provided the lists hold every entry near its region (see gridCovers).
+		PathQuery(const btEllipsoidWorldCache& cache, btScalar radius, const btVector3* boxes, const btVector3& unionMin,
+				  const btVector3& unionMax);
 		/// Writes the candidates to out (room for size() indices) and returns their number; q and x must be finite
 		/// (the collider skips NaN/Inf nodes before). Inline (below): it
 		/// runs once per cloth node and substep.
 		int candidates(const btVector3& q, const btVector3& x, int* out) const;
+
+		/// The world box test without branches (the outcome is a coin toss per candidate): writes index(j) for
+		/// j < n to out, keeping those whose box overlaps [boxMin, boxMax] (closed intervals on x, y and z; four
+		/// lanes compared at once where SSE is available, the fourth ignored). \return the number kept.
+		/// (Public for the collider's swept broad phase, which filters its own lists the same way.)
+		template <class Index>
+		static int filterByBox(Index index, int n, const btVector3* boxes, const btVector3& boxMin,
+							   const btVector3& boxMax, int* out);
+		/// Indices of a cell list.
+		struct ListIndex
+		{
+			const int* m_list;
+			int operator()(int j) const { return m_list[j]; }
+		};
 
 	private:
 		// Copies of the cache's grid (plain pointers and values: the per-node call reads no array objects).
@@ -258,43 +297,6 @@ public:
 			return !(aMin.x() > bMax.x() || aMax.x() < bMin.x() || aMin.y() > bMax.y() || aMax.y() < bMin.y() ||
 					 aMin.z() > bMax.z() || aMax.z() < bMin.z());
 		}
-		/// The world box test without branches (the outcome is a coin toss per candidate): writes index(j) for
-		/// j < n to out, keeping those whose box overlaps [boxMin, boxMax] (closed intervals on x, y and z; four
-		/// lanes compared at once where SSE is available, the fourth ignored). \return the number kept.
-		template <class Index>
-		static int filterByBox(Index index, int n, const btVector3* boxes, const btVector3& boxMin,
-							   const btVector3& boxMax, int* out)
-		{
-#ifdef BT_ELLIPSOID_SSE_BOXES
-			const __m128 mn = _mm_setr_ps(boxMin.x(), boxMin.y(), boxMin.z(), btScalar(0));
-			const __m128 mx = _mm_setr_ps(boxMax.x(), boxMax.y(), boxMax.z(), btScalar(0));
-#endif
-			int nc = 0;
-			for (int j = 0; j < n; ++j)
-			{
-				const int k = index(j);
-				const btVector3& lo = boxes[2 * k];
-				const btVector3& hi = boxes[2 * k + 1];
-				out[nc] = k;
-#ifdef BT_ELLIPSOID_SSE_BOXES
-				const __m128 a = _mm_cmple_ps(mn, _mm_loadu_ps(&hi.x()));
-				const __m128 b = _mm_cmpge_ps(mx, _mm_loadu_ps(&lo.x()));
-				nc += (_mm_movemask_ps(_mm_and_ps(a, b)) & 7) == 7 ? 1 : 0;
-#else
-				nc += ((boxMin.x() <= hi.x()) & (boxMax.x() >= lo.x()) & (boxMin.y() <= hi.y()) & (boxMax.y() >= lo.y()) &
-					   (boxMin.z() <= hi.z()) & (boxMax.z() >= lo.z()))
-						  ? 1
-						  : 0;
-#endif
-			}
-			return nc;
-		}
-		/// Indices of a cell list.
-		struct ListIndex
-		{
-			const int* m_list;
-			int operator()(int j) const { return m_list[j]; }
-		};
 		/// Every entry: 0, 1, ..., n - 1.
 		struct AllIndices
 		{
@@ -315,7 +317,8 @@ private:
 	btVector3 m_aabbMin;
 	btVector3 m_aabbMax;
 
-	// uniform grid in the body (compound) frame, CSR lists; rebuilt only when the compound changes
+	// uniform grid in the body (compound) frame, CSR lists; rebuilt only when the compound changes (an animated
+	// compound: only when an ellipsoid left the lists' margin, see gridCovers)
 	enum
 	{
 		kGridCellsLongestSide = 32
@@ -334,8 +337,19 @@ private:
 	btAlignedObjectArray<int> m_wideItems;
 	mutable btAlignedObjectArray<unsigned> m_stamp;
 	mutable unsigned m_stampCounter;
+	/// An animated compound (changed with the same count) gets lists built for every ellipsoid grown by this margin
+	/// (metres, 0 for a compound seen once), so they stay valid while each ellipsoid stays within it of its pose at the
+	/// build (gridCovers); the build-time poses, in the body frame:
+	btScalar m_gridMargin;
+	int m_gridBuilds;
+	btAlignedObjectArray<btVector3> m_gridCenters;
+	btAlignedObjectArray<btMatrix3x3> m_gridUnwhiten; ///< R diag(a)
 
-	void buildGrid();
+	/// \param animated the compound changed with the same count: build with a margin (kAnimatedMargin)
+	void buildGrid(bool animated);
+	/// Every ellipsoid of m_shape lies within m_gridMargin of its pose at the last build: its points move by at most
+	/// |c - c_b| + |U - U_b|_2 <= |c - c_b| + |U - U_b|_F (U = R diag(a)), so the lists still hold it.
+	bool gridCovers() const;
 	void buildLists(btScalar dilation, btAlignedObjectArray<int>& start, btAlignedObjectArray<int>& items) const;
 	/// Cell index along axis k of a world coordinate, clamped to the grid (NaN and huge values included).
 	int cellCoord(btScalar value, int k) const
@@ -348,6 +362,36 @@ private:
 		return int(f);
 	}
 };
+
+template <class Index>
+BT_ELLIPSOID_ALWAYS_INLINE int btEllipsoidWorldCache::PathQuery::filterByBox(Index index, int n, const btVector3* boxes,
+																			const btVector3& boxMin,
+																			const btVector3& boxMax, int* out)
+{
+#ifdef BT_ELLIPSOID_SSE_BOXES
+	const __m128 mn = _mm_setr_ps(boxMin.x(), boxMin.y(), boxMin.z(), btScalar(0));
+	const __m128 mx = _mm_setr_ps(boxMax.x(), boxMax.y(), boxMax.z(), btScalar(0));
+#endif
+	int nc = 0;
+	for (int j = 0; j < n; ++j)
+	{
+		const int k = index(j);
+		const btVector3& lo = boxes[2 * k];
+		const btVector3& hi = boxes[2 * k + 1];
+		out[nc] = k;
+#ifdef BT_ELLIPSOID_SSE_BOXES
+		const __m128 a = _mm_cmple_ps(mn, _mm_loadu_ps(&hi.x()));
+		const __m128 b = _mm_cmpge_ps(mx, _mm_loadu_ps(&lo.x()));
+		nc += (_mm_movemask_ps(_mm_and_ps(a, b)) & 7) == 7 ? 1 : 0;
+#else
+		nc += ((boxMin.x() <= hi.x()) & (boxMax.x() >= lo.x()) & (boxMin.y() <= hi.y()) & (boxMax.y() >= lo.y()) &
+			   (boxMin.z() <= hi.z()) & (boxMax.z() >= lo.z()))
+				  ? 1
+				  : 0;
+#endif
+	}
+	return nc;
+}
 
 BT_ELLIPSOID_ALWAYS_INLINE int btEllipsoidWorldCache::PathQuery::candidates(const btVector3& q, const btVector3& x, int* out) const
 {

@@ -1,0 +1,284 @@
+/*
+bodyfit: Bullet extension for ellipsoid body colliders. See btEllipsoidSweep.h.
+
+The swept broad phase and its bound. Over the substep (s from 0 to 1) ellipsoid j's frame is taken as linearly
+interpolated, c(s) = c0 + s dc, U(s) = U0 + s dU (dc = c1 - c0, dU = U1 - U0), and the node's whitened position as the
+straight segment u(s) = u_q + s du (u_q = W0 (q - c0), u_x = W1 (x - c1), du = u_x - u_q): the moving-frame test asks
+whether |u(s)| <= 1 for some s. The world point p(s) = c(s) + U(s) u(s) starts at q and ends at x, and expanding it,
+	p(s) - (q + s (x - q)) = -s (1 - s) dU du,
+so it deviates from the straight path q -> x by at most |dU|_2 |du| / 4. At a hit (|u(s*)| <= 1), p(s*) is also a
+convex combination (1 - s*) (c0 + U0 u) + s* (c1 + U1 u) of a point of the previous and one of the current ellipsoid,
+so it lies in the box hull of their boxes (the swept box). |du| is bounded at the hit: writing u_q = u* - s* du and
+u_x = u* + (1 - s*) du gives x - q = dc + dU u* + U(1 - s*) du, so
+	|du| <= (|x - q| + |dc| + |dU|_2) / sigma_min(U(1 - s*)),
+and sigma_min(U(sigma)) >= max(a0min - sigma |dU|_2, a1min - (1 - sigma) |dU|_2) >= m = (a0min + a1min - |dU|_2) / 2
+(a0min, a1min: the smallest semi-axes). Hence, whenever m > 0, every hit point lies in the swept box and within
+	delta_j = k_j (|x - q| + e_j),  k_j = |dU|_2 / (4 m),  e_j = |dc| + |dU|_2
+of the straight path: the path box grown by delta_j (plus the skin radius) overlaps the swept box. |dU|_2 is bounded by
+the Frobenius norm. The query grows every path by K (|x - q| + E), K = max k_j and E = max e_j over the ellipsoids, so
+it is conservative for every path q -> x of any length; an ellipsoid with m <= 0 (a rotation or a change of shape so
+large in one substep that the interpolated frame can collapse, e.g. a 5 mm thin disc turned by more than ~4 degrees
+per substep around a 15 cm axis) has no such bound and is listed for every path (m_always). Up to rounding: boxes
+are rasterised with 1e-3 cell of slack and the growth is rounded up by 1e-5 of itself.
+*/
+
+#include "src/btEllipsoidSweep.h"
+
+#include "src/btEllipsoidNarrowPhase.h"
+
+namespace
+{
+
+/// Grid cells list the swept boxes meeting the cell grown by this fraction of a cell on every side; a path box that
+/// fits in its midpoint's grown cell reads one list (as the static grid, btEllipsoidCompoundShape.cpp).
+const btScalar kDilation = btScalar(0.25);
+
+/// Rasterisation slack (cells): rounding of the cell coordinates.
+const btScalar kCellSlack = btScalar(1e-3);
+
+btScalar frobenius(const btMatrix3x3& m)
+{
+	return btSqrt(m[0].length2() + m[1].length2() + m[2].length2());
+}
+
+btScalar smallestColumn(const btMatrix3x3& m)
+{
+	return btMin(btMin(m.getColumn(0).length(), m.getColumn(1).length()), m.getColumn(2).length());
+}
+
+bool boxesOverlap(const btVector3& aMin, const btVector3& aMax, const btVector3& bMin, const btVector3& bMax)
+{
+	return !(aMin.x() > bMax.x() || aMax.x() < bMin.x() || aMin.y() > bMax.y() || aMax.y() < bMin.y() ||
+			 aMin.z() > bMax.z() || aMax.z() < bMin.z());
+}
+
+int clampCell(btScalar f, int dim)
+{
+	return int(btMin(btMax(f, btScalar(0)), btScalar(dim - 1)));
+}
+
+} // namespace
+
+btEllipsoidSweep::btEllipsoidSweep()
+	: m_growthPerLength(0), m_growthOffset(0), m_origin(0, 0, 0), m_unionMax(0, 0, 0), m_invCell(1)
+{
+	m_dims[0] = m_dims[1] = m_dims[2] = 0;
+}
+
+void btEllipsoidSweep::capture(const btEllipsoidWorldCache& previous)
+{
+	const int n = previous.size();
+	const int stride = btEllipsoidWorldCache::kPackedStride;
+	m_previous.resize(stride * btMax(n, 1));
+	m_previousUnwhiten.resize(n);
+	const btScalar* packed = previous.getPackedRecords();
+	for (int i = 0; i < stride * n; ++i)
+		m_previous[i] = packed[i];
+	for (int j = 0; j < n; ++j)
+		m_previousUnwhiten[j] = previous[j].m_unwhiten;
+}
+
+bool btEllipsoidSweep::prepare(const btEllipsoidWorldCache& current)
+{
+	const int n = current.size();
+	const int stride = btEllipsoidWorldCache::kPackedStride;
+	const btScalar* packed = current.getPackedRecords();
+	bool moved = false;
+	for (int i = 0; i < stride * n && !moved; ++i)
+		moved = packed[i] != m_previous[i];
+	if (!moved)
+		return false;
+	m_boxes.resize(2 * n);
+	m_always.resize(0);
+	m_growthPerLength = btScalar(0);
+	m_growthOffset = btScalar(0);
+	for (int j = 0; j < n; ++j)
+	{
+		btScalar k = btScalar(0), e = btScalar(0);
+		if (!sweptBox(current, j, k, e))
+		{
+			m_always.push_back(j);
+			continue;
+		}
+		m_growthPerLength = btMax(m_growthPerLength, k);
+		m_growthOffset = btMax(m_growthOffset, e);
+	}
+	buildGrid(n);
+	return true;
+}
+
+bool btEllipsoidSweep::sweptBox(const btEllipsoidWorldCache& current, int j, btScalar& k, btScalar& e)
+{
+	const btEllipsoidWorldCache::Entry& now = current[j];
+	const btScalar* pk = &m_previous[btEllipsoidWorldCache::kPackedStride * j];
+	const btVector3 c0(pk[0], pk[1], pk[2]);
+	const btMatrix3x3& u0 = m_previousUnwhiten[j];
+	const btVector3 extent0(u0[0].length(), u0[1].length(), u0[2].length());
+	btVector3 lo = c0 - extent0, hi = c0 + extent0;
+	lo.setMin(now.m_aabbMin);
+	hi.setMax(now.m_aabbMax);
+	m_boxes[2 * j] = lo;
+	m_boxes[2 * j + 1] = hi;
+	const btScalar dU = frobenius(now.m_unwhiten - u0);
+	const btScalar m = (smallestColumn(u0) + smallestColumn(now.m_unwhiten) - dU) * btScalar(0.5);
+	e = (now.m_center - c0).length() + dU;
+	if (!(m > btScalar(0)))
+		return false;
+	k = dU / (btScalar(4) * m);
+	return k - k == btScalar(0); // finite
+}
+
+void btEllipsoidSweep::buildGrid(int count)
+{
+	m_dims[0] = m_dims[1] = m_dims[2] = 0;
+	m_cellStart.resize(0);
+	m_cellItems.resize(0);
+	btVector3 lo(SIMD_INFINITY, SIMD_INFINITY, SIMD_INFINITY), hi = -lo;
+	int listed = 0;
+	for (int j = 0, a = 0; j < count; ++j)
+	{
+		if (a < m_always.size() && m_always[a] == j)
+		{
+			++a;
+			continue;
+		}
+		lo.setMin(m_boxes[2 * j]);
+		hi.setMax(m_boxes[2 * j + 1]);
+		++listed;
+	}
+	m_origin = lo;
+	m_unionMax = hi;
+	if (listed == 0)
+		return;
+	const btVector3 size = hi - lo;
+	const btScalar cell = btMax(size[size.maxAxis()], btScalar(1e-3)) / btScalar(kCellsLongestSide);
+	m_invCell = btScalar(1) / cell;
+	for (int k = 0; k < 3; ++k)
+		m_dims[k] = btMax(1, btMin(int(kCellsLongestSide), int(size[k] * m_invCell) + 1));
+	const int cells = m_dims[0] * m_dims[1] * m_dims[2];
+	m_cellStart.resize(cells + 1);
+	for (int c = 0; c <= cells; ++c)
+		m_cellStart[c] = 0;
+	btAlignedObjectArray<int> cursor;
+	for (int pass = 0; pass < 2; ++pass)
+	{
+		if (pass == 1)
+		{
+			for (int c = 0; c < cells; ++c)
+				m_cellStart[c + 1] += m_cellStart[c];
+			m_cellItems.resize(m_cellStart[cells]);
+			cursor.resize(cells);
+			for (int c = 0; c < cells; ++c)
+				cursor[c] = m_cellStart[c];
+		}
+		for (int j = 0, a = 0; j < count; ++j)
+		{
+			if (a < m_always.size() && m_always[a] == j)
+			{
+				++a;
+				continue;
+			}
+			// The box grown by the dilation: it meets every grown cell the box meets.
+			const btVector3 grow((kDilation + kCellSlack) / m_invCell, (kDilation + kCellSlack) / m_invCell,
+								 (kDilation + kCellSlack) / m_invCell);
+			int l[3], h[3];
+			cellRange(m_boxes[2 * j] - grow, m_boxes[2 * j + 1] + grow, l, h);
+			for (int z = l[2]; z <= h[2]; ++z)
+				for (int y = l[1]; y <= h[1]; ++y)
+					for (int x = l[0]; x <= h[0]; ++x)
+					{
+						const int c = (z * m_dims[1] + y) * m_dims[0] + x;
+						if (pass == 0)
+							++m_cellStart[c + 1];
+						else
+							m_cellItems[cursor[c]++] = j;
+					}
+		}
+	}
+}
+
+void btEllipsoidSweep::cellRange(const btVector3& bMin, const btVector3& bMax, int lo[3], int hi[3]) const
+{
+	for (int k = 0; k < 3; ++k)
+	{
+		lo[k] = clampCell((bMin[k] - m_origin[k]) * m_invCell, m_dims[k]);
+		hi[k] = clampCell((bMax[k] - m_origin[k]) * m_invCell, m_dims[k]);
+	}
+}
+
+btVector3 btEllipsoidSweep::carry(const btEllipsoidWorldCache& current, int j, const btVector3& q) const
+{
+	const btEllipsoidWorldCache::Entry& now = current[j];
+	btScalar u[3];
+	btWhitenPacked(&m_previous[btEllipsoidWorldCache::kPackedStride * j], q.x(), q.y(), q.z(), u);
+	return now.m_center + now.m_unwhiten * btVector3(u[0], u[1], u[2]);
+}
+
+btVector3 btEllipsoidSweep::previousPoint(const btEllipsoidWorldCache& current, int j, const btVector3& p) const
+{
+	const btEllipsoidWorldCache::Entry& now = current[j];
+	const btScalar* pk = &m_previous[btEllipsoidWorldCache::kPackedStride * j];
+	return btVector3(pk[0], pk[1], pk[2]) + m_previousUnwhiten[j] * (now.m_whiten * (p - now.m_center));
+}
+
+int btEllipsoidSweep::candidates(const btVector3& q, const btVector3& x, btScalar radius, int* out) const
+{
+	int nc = 0;
+	if (m_dims[0] > 0)
+	{
+		const btScalar grow = growth(q, x, radius);
+		const btVector3 g(grow, grow, grow);
+		btVector3 boxMin = q, boxMax = q;
+		boxMin.setMin(x);
+		boxMax.setMax(x);
+		boxMin -= g;
+		boxMax += g;
+		if (boxesOverlap(boxMin, boxMax, m_origin, m_unionMax))
+			nc = walkCells(boxMin, boxMax, out);
+	}
+	for (int a = 0; a < m_always.size(); ++a)
+		out[nc++] = m_always[a];
+	return nc;
+}
+
+int btEllipsoidSweep::walkCells(const btVector3& boxMin, const btVector3& boxMax, int* out) const
+{
+	const btVector3 fLo = (boxMin - m_origin) * m_invCell, fHi = (boxMax - m_origin) * m_invCell;
+	const btVector3 fMid = (fLo + fHi) * btScalar(0.5);
+	int c3[3];
+	bool inGrownCell = true;
+	for (int k = 0; k < 3; ++k)
+	{
+		c3[k] = clampCell(fMid[k], m_dims[k]);
+		inGrownCell = inGrownCell && fLo[k] >= btScalar(c3[k]) - kDilation && fHi[k] <= btScalar(c3[k] + 1) + kDilation;
+	}
+	if (inGrownCell)
+	{
+		// Every box meeting the path box meets this grown cell: its list has them all, each once.
+		const int c = (c3[2] * m_dims[1] + c3[1]) * m_dims[0] + c3[0];
+		const btEllipsoidWorldCache::PathQuery::ListIndex list = {&m_cellItems[0] + m_cellStart[c]};
+		return btEllipsoidWorldCache::PathQuery::filterByBox(list, m_cellStart[c + 1] - m_cellStart[c], &m_boxes[0],
+															 boxMin, boxMax, out);
+	}
+	int l[3], h[3];
+	cellRange(boxMin, boxMax, l, h);
+	int nc = 0;
+	for (int z = l[2]; z <= h[2]; ++z)
+		for (int y = l[1]; y <= h[1]; ++y)
+			for (int x = l[0]; x <= h[0]; ++x)
+			{
+				const int c = (z * m_dims[1] + y) * m_dims[0] + x;
+				for (int i = m_cellStart[c]; i < m_cellStart[c + 1]; ++i)
+				{
+					const int j = m_cellItems[i];
+					if (!boxesOverlap(boxMin, boxMax, m_boxes[2 * j], m_boxes[2 * j + 1]))
+						continue;
+					int m = 0;
+					while (m < nc && out[m] != j)
+						++m; // a box over several cells is listed in each: keep it once
+					if (m == nc)
+						out[nc++] = j;
+				}
+			}
+	return nc;
+}
