@@ -4,6 +4,8 @@
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/kmeans.h"
 #include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/parallel.h"
+#include "bodyfit/fitting/triangle_cover.h"
 
 #include <algorithm>
 #include <array>
@@ -383,6 +385,8 @@ void validate(const TriMesh& mesh, const std::vector<Region>& labels, const Body
 		throw InvalidInputError("fitBody: minRadiusFraction and mveeTolerance must be finite and > 0");
 	if (!std::isfinite(o.height))
 		throw InvalidInputError("fitBody: height must be finite");
+	if (o.threads < 0)
+		throw InvalidInputError("fitBody: threads must be >= 0 (0 = every hardware thread)");
 }
 
 /// Groups in output order: head, torso, arms, legs (Region order, torso parts merged), whole.
@@ -463,54 +467,19 @@ struct CoverStats
 	double ms = 0.0;
 };
 
-/// A piece of a triangle across a cluster boundary: its corners, and the clusters of its triangle's corners
-/// (checked first: they usually contain it).
-struct CoverPiece
-{
-	std::array<Eigen::Vector3d, 3> p;
-	std::array<int, 3> clusters;
-};
-
-/// The triangles across a cluster boundary (all corners fitted; `owner` = cluster id per vertex, -1 unfitted), cut
-/// into sub-triangles: a barycentric grid with the longest edge in pieces no longer than `spacing` (at most
-/// 64 cuts per edge, coverCutLevel).
-std::vector<CoverPiece> boundaryPieces(const TriMesh& mesh, const std::vector<int>& owner, double spacing)
-{
-	std::vector<CoverPiece> pieces;
-	for (int f = 0; f < mesh.F.rows(); ++f)
-	{
-		const std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
-		const std::array<int, 3> c = {owner[std::size_t(v[0])], owner[std::size_t(v[1])], owner[std::size_t(v[2])]};
-		if (c[0] < 0 || c[1] < 0 || c[2] < 0 || (c[0] == c[1] && c[1] == c[2]))
-			continue;
-		const Eigen::Vector3d a = mesh.V.row(v[0]), b = mesh.V.row(v[1]), d = mesh.V.row(v[2]);
-		const int level = coverCutLevel(a, b, d, spacing);
-		auto at = [&](int i, int j) { return Eigen::Vector3d((double(i) * a + double(j) * b + double(level - i - j) * d) / double(level)); };
-		for (int i = 0; i < level; ++i)
-			for (int j = 0; i + j < level; ++j)
-			{
-				pieces.push_back({{at(i, j), at(i + 1, j), at(i, j + 1)}, c});
-				if (i + j + 2 <= level)
-					pieces.push_back({{at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)}, c});
-			}
-	}
-	return pieces;
-}
-
 /// Triangle cover (coverTriangles, see body_fitter.h). The clusters partition the vertices, so every ellipsoid
 /// encloses its own vertices and, by convexity, every triangle whose corners are all its own. A triangle whose corners
 /// belong to different clusters can bulge out between two ellipsoids. Every such triangle is cut on a barycentric grid
-/// into pieces whose edges are at most `spacing` (boundaryPieces). A piece that no single
-/// ellipsoid contains (all three corners at zeta <= 1 + 1e-9, the MVEE's own enclosure tolerance) goes to the corner
-/// cluster whose ellipsoid comes closest (smallest max zeta of the piece's corners; ties: lower index): its corners
-/// outside that ellipsoid become extra points of the cluster, and the clusters that received points are refitted.
+/// into pieces whose edges are at most `spacing`; a piece that no single ellipsoid contains hands its corners outside
+/// the closest corner cluster to that cluster (TriangleCover, triangle_cover.h, has the rules), and the clusters that
+/// received points are refitted (in parallel over `threads`: each refit depends only on its own cluster).
 /// Extra points stay in their cluster's MVEE input, so a piece handed to a cluster stays inside it; refits move
 /// ellipsoids, so the check repeats until every piece lies inside one ellipsoid. Each round adds at least one new
 /// point (a piece whose corners were all enclosed would be contained), so the loop ends; `maxRounds` is a safety cap.
 /// Pieces instead of whole triangles let the ellipsoids grow less (body_fitter.h has the numbers).
-CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner, double spacing)
+CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner, double spacing,
+						  int threads)
 {
-	constexpr double kInside = 1.0 + 1e-9; // the MVEE's own enclosure guarantee (mvee.h)
 	constexpr int maxRounds = 50;
 	const Clock::time_point t0 = Clock::now();
 	CoverStats stats;
@@ -532,60 +501,44 @@ CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refin
 		return groups[std::size_t(refs[std::size_t(id)].g)].clusters[std::size_t(refs[std::size_t(id)].j)];
 	};
 
-	const std::vector<CoverPiece> pieces = boundaryPieces(mesh, owner, spacing);
-
+	TriangleCover cover(mesh, owner, spacing);
 	const int k = int(refs.size());
-	std::vector<Eigen::AlignedBox3d> boxes(refs.size());
-	std::vector<char> grew(refs.size(), 0);
+	std::vector<Ellipsoid> ellipsoids(refs.size());
+	std::vector<char> grew(refs.size(), 0), targeted;
+	std::vector<TriangleCover::Handout> handouts;
+	std::vector<int> refit;
+	std::vector<Refiner> workers(std::size_t(std::max(1, threads)), refiner);
+	for (Refiner& w : workers)
+		w.kmeansMs = w.mveeMs = w.errorMs = 0.0;
 	for (int round = 0;; ++round)
 	{
 		for (int id = 0; id < k; ++id)
-			boxes[std::size_t(id)] = cluster(id).fit.ellipsoid.aabb();
-		auto maxZeta = [&](int id, const CoverPiece& piece) {
-			const Ellipsoid& e = cluster(id).fit.ellipsoid;
-			return std::max({e.zeta(piece.p[0]), e.zeta(piece.p[1]), e.zeta(piece.p[2])});
-		};
-		auto contains = [&](int id, const CoverPiece& piece) {
-			const Eigen::AlignedBox3d& box = boxes[std::size_t(id)];
-			return box.contains(piece.p[0]) && box.contains(piece.p[1]) && box.contains(piece.p[2]) &&
-				   maxZeta(id, piece) <= kInside;
-		};
-		stats.uncovered = 0;
-		std::fill(grew.begin(), grew.end(), 0);
-		for (const CoverPiece& piece : pieces)
-		{
-			bool covered = contains(piece.clusters[0], piece) || contains(piece.clusters[1], piece) ||
-						   contains(piece.clusters[2], piece);
-			for (int id = 0; id < k && !covered; ++id)
-				covered = contains(id, piece);
-			if (covered)
-				continue;
-			++stats.uncovered;
-			if (round == maxRounds)
-				continue;
-			int best = -1;
-			double bestZeta = 0.0;
-			for (int id : piece.clusters)
-			{
-				const double z = maxZeta(id, piece);
-				if (best < 0 || z < bestZeta || (z == bestZeta && id < best))
-				{
-					best = id;
-					bestZeta = z;
-				}
-			}
-			Cluster& target = cluster(best);
-			for (const Eigen::Vector3d& q : piece.p)
-				if (!(target.fit.ellipsoid.zeta(q) <= kInside))
-					target.extras.push_back(q);
-			grew[std::size_t(best)] = 1;
-		}
+			ellipsoids[std::size_t(id)] = cluster(id).fit.ellipsoid;
+		handouts.clear();
+		stats.uncovered = cover.check(ellipsoids, grew, handouts, targeted, threads);
 		if (stats.uncovered == 0 || round == maxRounds)
 			break;
+		for (const TriangleCover::Handout& h : handouts)
+			cluster(h.cluster).extras.push_back(h.point);
+		grew = targeted; // every cluster an uncovered piece went to is refitted
+		refit.clear();
 		for (int id = 0; id < k; ++id)
 			if (grew[std::size_t(id)])
-				refiner.refitWithExtras(groups[std::size_t(refs[std::size_t(id)].g)], cluster(id));
+				refit.push_back(id);
+		parallelParts(int(refit.size()), int(workers.size()), [&](int part, int begin, int end) {
+			Refiner& worker = workers[std::size_t(part)];
+			for (int r = begin; r < end; ++r)
+			{
+				const int id = refit[std::size_t(r)];
+				worker.refitWithExtras(groups[std::size_t(refs[std::size_t(id)].g)], cluster(id));
+			}
+		});
 		++stats.rounds;
+	}
+	for (const Refiner& w : workers)
+	{
+		refiner.mveeMs += w.mveeMs;
+		refiner.errorMs += w.errorMs;
 	}
 	for (int id = 0; id < k; ++id)
 		stats.extraPoints += int(cluster(id).extras.size());
@@ -671,9 +624,10 @@ RefineStatus refine(std::vector<Group>& groups, Refiner& refiner, const BodyFitO
 }
 
 /// Runs the triangle cover with pieces of at most `spacing` metres and records its statistics in `result`.
-void applyCover(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner, double spacing, BodyFit& result)
+void applyCover(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner, double spacing, int threads,
+				BodyFit& result)
 {
-	const CoverStats cover = coverTriangles(mesh, groups, refiner, spacing);
+	const CoverStats cover = coverTriangles(mesh, groups, refiner, spacing, threads);
 	result.coverRounds = cover.rounds;
 	result.coverExtraPoints = cover.extraPoints;
 	result.setTiming("fitting.cover", cover.ms);
@@ -831,7 +785,7 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 	// (b)-(e) Refinement, then the triangle cover.
 	result.status = refine(groups, refiner, metres, result);
 	if (metres.coverTriangles)
-		applyCover(mesh, groups, refiner, metres.coverSpacing, result);
+		applyCover(mesh, groups, refiner, metres.coverSpacing, resolveThreads(metres.threads), result);
 	const double fittingMs = msSince(t0);
 
 	const Clock::time_point tReport = Clock::now();

@@ -94,6 +94,9 @@ struct BodyFitOptions
 	double coverSpacing = 0.003;
 	/// Compute the true (Eberly) distance statistics of the final ellipsoids (costs ~1 closest-point query/vertex).
 	bool trueDistance = true;
+	/// Threads of the fit (0 = every hardware thread). The result is the same bit for bit for any count: the work
+	/// is split into independent parts whose results are merged in a fixed order (parallel.h).
+	int threads = 0;
 };
 
 /// A length-valued fit parameter: a fraction of the body height H, or metres.
