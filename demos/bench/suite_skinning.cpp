@@ -129,6 +129,7 @@ BindFitTiming timeBindFit(const bodyfit::TriMesh& mesh, int repeats, int threads
 {
 	bodyfit::FitPipelineOptions options;
 	options.fit.threads = threads;
+	options.segmentation.geodesics.threads = threads;
 	std::vector<double> segmentation, fit, cover, bindFit, report, bindFitCpu;
 	BindFitTiming out;
 	for (int r = 0; r < std::max(1, repeats); ++r)
