@@ -1,6 +1,7 @@
 // Rigged input (rig.h): a two-bone bent cylinder written as glTF in the test, whose skinned vertices are known in
 // closed form; the bundled animated bodies; every bad input with its one-line error.
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/rig.h"
 #include "support/gltf_rig.h"
 #include "support/paths.h"
@@ -8,6 +9,9 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
 #include <limits>
 
 using namespace bodyfit;
@@ -314,5 +318,83 @@ TEST_CASE("The bundled animated bodies load: 13,380 vertices, 4 influences, walk
 			skinVertices(rig, skinningMatrices(rig, poseBones(rig, clip, clip.duration / 2)), skinned);
 			CHECK((skinned - rig.bindMesh.V).rowwise().norm().maxCoeff() > 0.05); // and moves
 		}
+	}
+}
+
+namespace
+{
+
+/// The bent cylinder written as glTF (+ .bin), its JSON changed by `edit`, written again under `name`; the
+/// MeshLoadError message of loadRig on it ("no error" when it loads).
+std::string editedGltfError(const std::string& name, const std::function<void(nlohmann::json&)>& edit)
+{
+	const std::string base = bodyfit_test::writeGltfRig(bentCylinder(), "refs_base");
+	nlohmann::json doc = nlohmann::json::parse(std::ifstream(base));
+	edit(doc);
+	const std::string path = (std::filesystem::path(base).parent_path() / (name + ".gltf")).string();
+	std::ofstream(path) << doc.dump();
+	try
+	{
+		loadRig(path);
+	}
+	catch (const MeshLoadError& e)
+	{
+		return e.what();
+	}
+	return "no error";
+}
+
+} // namespace
+
+TEST_CASE("glTF references are checked before assimp reads them: one-line errors", "[rig][robust][gltf]")
+{
+	// The fuzzed GLB of issue 15 (tests/data/robust_fuzz_glb_skin_no_ibm.glb): its skin lost its inverse bind
+	// matrices and assimp 5.2 dereferenced the missing accessor (a segfault). Refused by both loaders now.
+	const std::string fuzzed = bodyfit_test::dataPath("robust_fuzz_glb_skin_no_ibm.glb");
+	const std::string expected = "robust_fuzz_glb_skin_no_ibm.glb: glTF skins[0] has no inverseBindMatrices";
+	CHECK_THROWS_WITH(loadRig(fuzzed), Catch::Contains(expected));
+	CHECK_THROWS_WITH(loadTriMesh(fuzzed), Catch::Contains(expected));
+	// The unedited cylinder passes every check (the edits below are what fails).
+	CHECK(editedGltfError("refs_ok", [](nlohmann::json&) {}) == "no error");
+	// Accessor 0 (POSITION) is 110 VEC3 floats in buffer view 0 of 1320 bytes.
+	const std::vector<std::pair<std::function<void(nlohmann::json&)>, std::string>> cases = {
+		{[](nlohmann::json& d) { d["accessors"][0]["bufferView"] = 99; }, "glTF accessors[0].bufferView is 99, not one of the"},
+		{[](nlohmann::json& d) { d["accessors"][0]["count"] = 111; },
+		 "glTF accessors[0]: 111 elements of 12 bytes from byte 0 run past the end of buffer view 0 (1320 bytes)"},
+		{[](nlohmann::json& d) { d["accessors"][0]["byteOffset"] = 4; }, "110 elements of 12 bytes from byte 4 run past"},
+		{[](nlohmann::json& d) { d["accessors"][0]["count"] = 0; }, "glTF accessors[0].count is 0"},
+		{[](nlohmann::json& d) { d["accessors"][0]["componentType"] = 5127; },
+		 "glTF accessors[0] has component type 5127 and type 'VEC3' (not a glTF 2.0 accessor)"},
+		{[](nlohmann::json& d) { d["accessors"][0]["type"] = "VEC5"; }, "type 'VEC5' (not a glTF 2.0 accessor)"},
+		{[](nlohmann::json& d) { d["bufferViews"][0]["buffer"] = 3; }, "glTF bufferViews[0].buffer is 3, not one of the 1 buffers"},
+		{[](nlohmann::json& d) { d["bufferViews"][0]["byteOffset"] = 1u << 30; }, "glTF bufferViews[0] (bytes 1073741824 + 1320) runs past the end of buffer 0"},
+		{[](nlohmann::json& d) { d["bufferViews"][0]["byteStride"] = 2; }, "glTF bufferViews[0].byteStride is 2 (glTF allows 4-252)"},
+		{[](nlohmann::json& d) { d["meshes"][0]["primitives"][0]["indices"] = 50; }, "glTF meshes[0].primitives[0].indices is 50"},
+		{[](nlohmann::json& d) { d["meshes"][0]["primitives"][0]["attributes"]["WEIGHTS_0"] = 50; },
+		 "glTF meshes[0].primitives[0].attributes.WEIGHTS_0 is 50"},
+		{[](nlohmann::json& d) { d["nodes"][0]["skin"] = 1; }, "glTF nodes[0].skin is 1, not one of the 1 skins"},
+		{[](nlohmann::json& d) { d["skins"][0]["joints"][1] = 42; }, "glTF skins[0].joints[1] is 42, not one of the 3 nodes"},
+		{[](nlohmann::json& d) { d["skins"][0]["joints"] = nlohmann::json::array(); }, "glTF skins[0] has no joints"},
+		{[](nlohmann::json& d) { d["skins"][0].erase("inverseBindMatrices"); }, "glTF skins[0] has no inverseBindMatrices"},
+		{[](nlohmann::json& d) { d["skins"][0]["inverseBindMatrices"] = 77; }, "glTF skins[0].inverseBindMatrices is 77"},
+		{[](nlohmann::json& d) { d["skins"][0]["inverseBindMatrices"] = 0; }, "glTF skins[0].inverseBindMatrices (accessor 0) is not a float MAT4"},
+		{[](nlohmann::json& d) {
+			 const int ibm = d["skins"][0]["inverseBindMatrices"];
+			 d["accessors"][std::size_t(ibm)]["count"] = 1;
+		 },
+		 "has 1 elements, fewer than 2"},
+		{[](nlohmann::json& d) { d["animations"][0]["samplers"][0]["input"] = 99; }, "glTF animations[0].samplers[0].input is 99"},
+		{[](nlohmann::json& d) { d["animations"][0]["samplers"][0].erase("output"); }, "glTF animations[0].samplers[0] has no output"},
+		{[](nlohmann::json& d) { d["animations"][0]["samplers"][0]["input"] = 0; }, "samplers[0].input (accessor 0) is not a float SCALAR"},
+		{[](nlohmann::json& d) { d["animations"][0]["channels"][0]["sampler"] = 5; }, "glTF animations[0].channels[0].sampler is 5"},
+		{[](nlohmann::json& d) { d["animations"][0]["channels"][0]["target"]["node"] = -1; }, "channels[0].target.node is -1"},
+		{[](nlohmann::json& d) { d["scenes"][0]["nodes"][0] = 9; }, "glTF scenes[0].nodes[0] is 9"},
+	};
+	for (std::size_t i = 0; i < cases.size(); ++i)
+	{
+		INFO("case " << i << ": " << cases[i].second);
+		const std::string what = editedGltfError("refs_bad_" + std::to_string(i), cases[i].first);
+		CHECK_THAT(what, Catch::Contains(cases[i].second));
+		CHECK(what.find('\n') == std::string::npos); // one line
 	}
 }
