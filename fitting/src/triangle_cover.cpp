@@ -115,6 +115,14 @@ public:
 				any = recheck[std::size_t(p)] != 0;
 			if (!any)
 				continue;
+			const int whole = coveringCornerCluster(tri);
+			if (whole >= 0)
+			{
+				for (int p = tri.firstPiece; p < tri.pieceEnd; ++p)
+					if (recheck[std::size_t(p)])
+						verdicts[std::size_t(p)] = Verdict{whole, -1, 0};
+				continue;
+			}
 			cornerValues(tri, zeta, inside);
 			const int count = pointCount(tri);
 			for (int p = tri.firstPiece; p < tri.pieceEnd; ++p)
@@ -138,6 +146,47 @@ private:
 		const std::size_t t = std::size_t(&tri - cover_.triangles_.data());
 		const int next = t + 1 < cover_.triangles_.size() ? cover_.triangles_[t + 1].firstPoint : int(cover_.points_.size());
 		return next - tri.firstPoint;
+	}
+
+	/// A corner cluster whose ellipsoid contains the whole triangle with a margin, or -1. Every grid point lies in
+	/// the convex hull of the triangle's three corner grid points up to rounding (~1e-16 of the coordinates), and box
+	/// and ellipsoid are convex: with the corners 1 nm inside the box and at zeta <= kInside - 1e-9, every grid point
+	/// is inside the box and at zeta <= kInside however it rounds (zeta's rounding error is ~1e-12 even at the
+	/// thinnest axis: |grad zeta| <= 2 / minimum radius, a few hundred per metre, times 1e-15 m), so each piece gets
+	/// the verdict the per-point check would give, without evaluating its points.
+	int coveringCornerCluster(const Triangle& tri) const
+	{
+		constexpr double kBoxMargin = 1e-9, kZetaMargin = 1e-9;
+		const int level = levelOf(tri);
+		const std::array<int, 3> corners = {gridIndex(level, 0, level), gridIndex(0, level, level), gridIndex(0, 0, level)};
+		for (int s = 0; s < 3; ++s)
+		{
+			const int id = tri.clusters[std::size_t(s)];
+			if ((s > 0 && id == tri.clusters[0]) || (s > 1 && id == tri.clusters[1]))
+				continue;
+			const Eigen::AlignedBox3d& box = boxes_[std::size_t(id)];
+			const Ellipsoid& e = ellipsoids_[std::size_t(id)];
+			bool all = true;
+			for (int k = 0; k < 3 && all; ++k)
+			{
+				const Eigen::Vector3d& q = cover_.points_[std::size_t(tri.firstPoint + corners[std::size_t(k)])];
+				all = ((q - box.min()).array() > kBoxMargin).all() && ((box.max() - q).array() > kBoxMargin).all() &&
+					  e.zeta(q) <= kInside - kZetaMargin;
+			}
+			if (all)
+				return id;
+		}
+		return -1;
+	}
+
+	/// The cut level of a triangle, from its grid point count (level + 1)(level + 2) / 2.
+	int levelOf(const Triangle& tri) const
+	{
+		const int count = pointCount(tri);
+		int level = 1;
+		while ((level + 1) * (level + 2) / 2 < count)
+			++level;
+		return level;
 	}
 
 	/// Per corner slot s (the triangle's corner clusters) and grid point q: zeta_s(q) and whether q lies in s's box
