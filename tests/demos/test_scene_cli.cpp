@@ -1,42 +1,26 @@
 // bodyfit-drape end to end: a short run of a bundled scene writes the metrics JSON (docs/DESIGN.md sec. 6 fields), the
 // two-view PNG of the scene's size and the OBJ frames; bad input exits 2 with a one-line reason naming the problem.
+#include "support/run_program.h"
+
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
-#include <sys/wait.h>
 
 namespace fs = std::filesystem;
 
 namespace
 {
 
-struct Run
-{
-	int exitCode = -1;
-	std::string out, err;
-};
-
 std::string slurp(const fs::path& p)
 {
-	std::ifstream in(p, std::ios::binary);
-	return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+	return bodyfit_test::readFile(p);
 }
 
-Run drape(const std::string& args, const fs::path& dir)
+bodyfit_test::ProgramRun drape(const std::string& args)
 {
-	const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-	const std::string cmd = std::string("\"") + BODYFIT_DRAPE_EXE + "\" " + args + " > \"" + out.string() + "\" 2> \"" +
-							err.string() + "\"";
-	const int status = std::system(cmd.c_str());
-	Run r;
-	r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-	r.out = slurp(out);
-	r.err = slurp(err);
-	return r;
+	return bodyfit_test::runProgram(BODYFIT_DRAPE_EXE, args);
 }
 
 fs::path freshDir(const std::string& name)
@@ -53,9 +37,10 @@ TEST_CASE("bodyfit-drape runs a bundled scene and writes metrics, picture and fr
 {
 	const fs::path dir = freshDir("bodyfit_drape_cli");
 	const std::string scene = std::string(BODYFIT_SCENE_DIR) + "/skirt_drop.json";
-	const Run r = drape("\"" + scene + "\" --steps 12 --metrics \"" + (dir / "m.json").string() + "\" --png \"" +
-							(dir / "p.png").string() + "\" --frames \"" + (dir / "frames").string() + "\"",
-						dir);
+	const bodyfit_test::ProgramRun r =
+		drape(bodyfit_test::quoted(scene) + " --steps 12 --metrics " + bodyfit_test::quoted((dir / "m.json").string()) +
+			  " --png " + bodyfit_test::quoted((dir / "p.png").string()) + " --frames " +
+			  bodyfit_test::quoted((dir / "frames").string()));
 	INFO(r.err);
 	REQUIRE(r.exitCode == 0);
 	const nlohmann::json m = nlohmann::json::parse(slurp(dir / "m.json"));
@@ -109,13 +94,13 @@ TEST_CASE("bodyfit-drape: bad input exits 2 with one line naming the problem", "
 	};
 	for (const Case& c : cases)
 	{
-		const Run r = drape(c.args, dir);
+		const bodyfit_test::ProgramRun r = drape(c.args);
 		INFO(c.args << " -> " << r.err);
 		CHECK(r.exitCode == 2);
 		CHECK(r.err.find(c.expected) != std::string::npos);
 		CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
 	}
-	const Run help = drape("--help", dir);
+	const bodyfit_test::ProgramRun help = drape("--help");
 	CHECK(help.exitCode == 0);
 	CHECK(help.out.find("usage: bodyfit-drape SCENE.json") == 0);
 	fs::remove_all(dir);
