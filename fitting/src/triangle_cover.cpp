@@ -284,15 +284,22 @@ private:
 	const BoxGrid grid_;
 };
 
+bool crossesClusters(const TriMesh& mesh, const std::vector<int>& owner, int f, std::array<int, 3>& clusters)
+{
+	for (int k = 0; k < 3; ++k)
+		clusters[std::size_t(k)] = owner[std::size_t(mesh.F(f, k))];
+	const std::array<int, 3>& c = clusters;
+	return c[0] >= 0 && c[1] >= 0 && c[2] >= 0 && !(c[0] == c[1] && c[1] == c[2]);
+}
+
 TriangleCover::TriangleCover(const TriMesh& mesh, const std::vector<int>& owner, double spacing)
 {
 	for (int f = 0; f < mesh.F.rows(); ++f)
 	{
-		const std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
-		const std::array<int, 3> c = {owner[std::size_t(v[0])], owner[std::size_t(v[1])], owner[std::size_t(v[2])]};
-		if (c[0] < 0 || c[1] < 0 || c[2] < 0 || (c[0] == c[1] && c[1] == c[2]))
+		std::array<int, 3> c{};
+		if (!crossesClusters(mesh, owner, f, c))
 			continue;
-		const Eigen::Vector3d a = mesh.V.row(v[0]), b = mesh.V.row(v[1]), d = mesh.V.row(v[2]);
+		const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), d = mesh.V.row(mesh.F(f, 2));
 		const int level = coverCutLevel(a, b, d, spacing);
 		Triangle tri;
 		tri.clusters = c;

@@ -23,15 +23,11 @@ namespace
 namespace fs = std::filesystem;
 
 using bodyfit_test::quoted;
+using bodyfit_test::readFile;
 
 fs::path scratch()
 {
 	return bodyfit_test::scratchDir("bodyfit_test_cli");
-}
-
-std::string slurp(const fs::path& p)
-{
-	return bodyfit_test::readFile(p);
 }
 
 /// Runs bodyfit-fit with `args` (already shell-quoted where needed) and captures exit status, stdout, stderr.
@@ -116,7 +112,7 @@ TEST_CASE("cli: a fit writes readable JSON and the ellipsoid mesh, creating the 
 	REQUIRE(run(quoted(bodyfit_test::assetPath("male_young.4508v.obj")) + " -o " + quoted(json2) +
 				" --max-ellipsoids 40")
 				.exitCode == 0);
-	CHECK(nlohmann::json::parse(slurp(json))["ellipsoids"] == nlohmann::json::parse(slurp(json2))["ellipsoids"]);
+	CHECK(nlohmann::json::parse(readFile(json))["ellipsoids"] == nlohmann::json::parse(readFile(json2))["ellipsoids"]);
 
 	// --absolute: thresholds in metres are recorded as such.
 	const std::string json3 = (dir / "fit3.json").string();
@@ -164,7 +160,7 @@ TEST_CASE("cli: --absolute with the relative thresholds times H gives the same f
 						" --mu-limbs " + exact(defaults.muLimbs * h));
 	CAPTURE(abs.err);
 	REQUIRE(abs.exitCode == 0);
-	CHECK(nlohmann::json::parse(slurp(relJson))["ellipsoids"] == nlohmann::json::parse(slurp(absJson))["ellipsoids"]);
+	CHECK(nlohmann::json::parse(readFile(relJson))["ellipsoids"] == nlohmann::json::parse(readFile(absJson))["ellipsoids"]);
 	// The triangle cover used the same piece size (before the fit pipeline --absolute left it at 0.003 m instead of
 	// 0.003 H: 291,440 points instead of 100,504 on this body).
 	CHECK(coverPoints(rel.out) > 0);

@@ -23,15 +23,11 @@ namespace
 namespace fs = std::filesystem;
 
 using bodyfit_test::quoted;
+using bodyfit_test::readFile;
 
 fs::path scratch()
 {
 	return bodyfit_test::scratchDir("bodyfit_test_cli_segmentation");
-}
-
-std::string slurp(const fs::path& p)
-{
-	return bodyfit_test::readFile(p);
 }
 
 bodyfit_test::ProgramRun run(const std::string& args)
@@ -70,7 +66,7 @@ TEST_CASE("cli segmentation: a body is fitted per region and the preview is writ
 	// The preview: the body's vertices plus an octahedron (6 vertices) per feature point (13 of them).
 	const bodyfit::TriMesh preview = bodyfit::loadTriMesh(ply).full; // the markers are separate components
 	CHECK(preview.vertexCount() == 4508 + 6 * 13);
-	CHECK(slurp(ply).find("property uchar red") != std::string::npos);
+	CHECK(readFile(ply).find("property uchar red") != std::string::npos);
 }
 
 TEST_CASE("cli segmentation: --no-segmentation keeps the generic path", "[fitting][cli][segmentation]")

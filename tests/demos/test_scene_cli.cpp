@@ -13,10 +13,7 @@ namespace fs = std::filesystem;
 namespace
 {
 
-std::string slurp(const fs::path& p)
-{
-	return bodyfit_test::readFile(p);
-}
+using bodyfit_test::readFile;
 
 bodyfit_test::ProgramRun drape(const std::string& args)
 {
@@ -43,7 +40,7 @@ TEST_CASE("bodyfit-drape runs a bundled scene and writes metrics, picture and fr
 			  bodyfit_test::quoted((dir / "frames").string()));
 	INFO(r.err);
 	REQUIRE(r.exitCode == 0);
-	const nlohmann::json m = nlohmann::json::parse(slurp(dir / "m.json"));
+	const nlohmann::json m = nlohmann::json::parse(readFile(dir / "m.json"));
 	for (const char* key : {"steps", "nodes", "ms_per_step", "collision_ms_per_step", "nodes_inside_body",
 							"max_nodes_inside_body", "mean_contact_gap_m", "nan_nodes"})
 		CHECK(m.contains(key));
@@ -52,7 +49,7 @@ TEST_CASE("bodyfit-drape runs a bundled scene and writes metrics, picture and fr
 	CHECK(m["nan_nodes"] == 0);
 	CHECK(m["collider"] == "ellipsoids");
 	// PNG of the scene's render size (skirt_drop uses the default 1200 x 900).
-	const std::string png = slurp(dir / "p.png");
+	const std::string png = readFile(dir / "p.png");
 	REQUIRE(png.size() > 24);
 	auto be32 = [&](int at) {
 		return (unsigned(std::uint8_t(png[at])) << 24) | (unsigned(std::uint8_t(png[at + 1])) << 16) |
@@ -64,7 +61,7 @@ TEST_CASE("bodyfit-drape runs a bundled scene and writes metrics, picture and fr
 	CHECK(fs::exists(dir / "frames" / "frame_00000.obj"));
 	CHECK(fs::exists(dir / "frames" / "frame_00010.obj"));
 	CHECK(fs::exists(dir / "frames" / "frame_00012.obj"));
-	const nlohmann::json frames = nlohmann::json::parse(slurp(dir / "frames" / "frames.json"));
+	const nlohmann::json frames = nlohmann::json::parse(readFile(dir / "frames" / "frames.json"));
 	CHECK(frames["frames"].size() == 3);
 	CHECK(r.err.find("step 12/12") != std::string::npos); // progress line on stderr
 	fs::remove_all(dir);

@@ -27,6 +27,11 @@
 namespace bodyfit
 {
 
+/// Whether face f of `mesh` crosses a cluster boundary (`owner`: cluster per vertex, -1 unfitted): its corners'
+/// clusters in `clusters`, true when all three are fitted and not all the same (the faces the cover cuts; the skin
+/// binding of skinned_fit.h picks the same faces).
+bool crossesClusters(const TriMesh& mesh, const std::vector<int>& owner, int f, std::array<int, 3>& clusters);
+
 class TriangleCover
 {
 public:
