@@ -6,10 +6,15 @@
 // radial distance of the skinned vertices to their own ellipsoid (paper E over the body, mean over frames; the fit
 // table has the bind-pose value), with the
 // default per-axis growth and with uniform growth. The update is also timed in thread CPU time (steadier than wall
-// time on a loaded machine). Then the bind-pose fit (segmentation + fitBody, as bodyfit-fit) and the binding time.
-// Single thread.
+// time on a loaded machine). Then the bind-pose fit as bodyfit-fit makes it (fit_pipeline.h: segmentForFit +
+// fitSegmented, default options) with the median of each phase over the repeats: segmentation, fit (refinement:
+// K-means + MVEEs), triangle cover, their sum (the bind-pose fit; also as CPU time over every thread, which is the
+// single-core time), the true-distance report, and the binding time.
+// `--part fit` runs only the bind-pose fit table; `--threads N` sets the fit's threads (BodyFitOptions::threads).
+// The per-frame update is single-threaded.
 #include "bench/bench_common.h"
 
+#include "bodyfit/fitting/fit_pipeline.h"
 #include "bodyfit/fitting/segmentation.h"
 #include "bodyfit/fitting/skinned_fit.h"
 
@@ -24,6 +29,14 @@ using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point t0)
 {
 	return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+/// CPU time of the whole process (every thread): the work of a multi-threaded step.
+double processCpuMs()
+{
+	timespec ts{};
+	clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+	return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
 }
 
 double threadCpuMs()
@@ -104,24 +117,70 @@ ClipTiming timeClip(bodyfit::SkinnedBody& body, const bodyfit::AnimationClip& cl
 	return out;
 }
 
+/// The bind-pose fit's phases, each the median over the repeats (ms), and the fit of the last repeat.
+struct BindFitTiming
+{
+	double segmentation = 0.0, fit = 0.0, cover = 0.0, bindFit = 0.0, report = 0.0;
+	double bindFitCpu = 0.0; ///< CPU time of segmentation + fit + cover summed over the threads (the work)
+	bodyfit::BodyFit result;
+};
+
+BindFitTiming timeBindFit(const bodyfit::TriMesh& mesh, int repeats, int threads)
+{
+	bodyfit::FitPipelineOptions options;
+	options.fit.threads = threads;
+	options.segmentation.geodesics.threads = threads;
+	std::vector<double> segmentation, fit, cover, bindFit, report, bindFitCpu;
+	BindFitTiming out;
+	for (int r = 0; r < std::max(1, repeats); ++r)
+	{
+		options.fit.trueDistance = false; // the report is timed apart, below
+		const double c0 = processCpuMs();
+		const Clock::time_point t0 = Clock::now();
+		const bodyfit::Segmentation seg = bodyfit::segmentForFit(mesh, options);
+		segmentation.push_back(msSince(t0));
+		out.result = bodyfit::fitSegmented(mesh, seg, options);
+		bindFitCpu.push_back(processCpuMs() - c0);
+		options.fit.trueDistance = true;
+		out.result = bodyfit::fitSegmented(mesh, seg, options);
+		// Phases of the run with the report (same fit: the report runs after it).
+		cover.push_back(out.result.timingMs("fitting.cover"));
+		fit.push_back(out.result.timingMs("fitting") - cover.back());
+		bindFit.push_back(segmentation.back() + out.result.timingMs("fitting"));
+		report.push_back(out.result.timingMs("report"));
+	}
+	out.segmentation = median(segmentation);
+	out.fit = median(fit);
+	out.cover = median(cover);
+	out.bindFit = median(bindFit);
+	out.report = median(report);
+	out.bindFitCpu = median(bindFitCpu);
+	return out;
+}
+
 } // namespace
 
-BODYFIT_BENCH_SUITE(skinning, "rigged body: per-frame update (pose, skin, ellipsoids) and the bind-pose fit")
+BODYFIT_BENCH_SUITE_WITH_OPTIONS(skinning, "rigged body: per-frame update (pose, skin, ellipsoids) and the bind-pose fit",
+								 {"--part", "all|fit", "fit: only the bind-pose fit table (default all)"},
+								 {"--threads", "N", "threads of the bind-pose fit (default 0 = every hardware thread)"})
 {
+	const std::string part = ctx.text("--part", "all");
+	if (part != "all" && part != "fit")
+		throw bodyfit_cli::UsageError("--part: " + part + " is not all or fit");
 	bodyfit_bench::Table frames({"body", "clip", "growth", "frames", "update ms median", "update ms worst",
 								 "update cpu ms median", "skinning ms median", "growth mm mean", "growth mm max",
 								 "radial error mm"});
-	bodyfit_bench::Table fits({"body", "vertices", "ellipsoids", "rigid", "bound points", "fit ms median", "bind ms",
+	bodyfit_bench::Table fits({"body", "vertices", "ellipsoids", "rigid", "bound points", "segmentation ms",
+							   "fit ms", "cover ms", "bind-pose fit ms", "bind-pose fit cpu ms", "report ms", "bind ms",
 							   "radial error mm (bind)"});
 	const int repeats = ctx.repeatsGiven ? ctx.repeats : (ctx.quick ? 1 : 5);
 	for (const char* name : {"female_young", "male_young"})
 	{
 		const bodyfit::Rig rig =
 			bodyfit::loadRig(std::string(BODYFIT_ASSET_DIR) + "/animated/" + name + ".animated.glb");
-		bodyfit::BodyFit fit;
-		const double fitMs = bodyfit_bench::medianMs(ctx.quick ? 1 : 3, [&] {
-			fit = bodyfit::fitBody(rig.bindMesh, bodyfit::segmentBody(rig.bindMesh).labels);
-		});
+		const BindFitTiming timing = timeBindFit(rig.bindMesh, ctx.repeatsGiven ? ctx.repeats : (ctx.quick ? 3 : 9),
+												 int(ctx.integer("--threads", 0, 0, 64)));
+		const bodyfit::BodyFit& fit = timing.result;
 		bodyfit::SkinBinding binding;
 		const Clock::time_point t0 = Clock::now();
 		binding = bodyfit::bindSkin(rig, fit);
@@ -131,8 +190,13 @@ BODYFIT_BENCH_SUITE(skinning, "rigged body: per-frame update (pose, skin, ellips
 			rigid += e.mode == bodyfit::EllipsoidMotion::Rigid;
 		fits.addRow({name, bodyfit_bench::fmtInt(rig.bindMesh.vertexCount()), bodyfit_bench::fmtInt(long(fit.ellipsoids.size())),
 					 bodyfit_bench::fmtInt(rigid), bodyfit_bench::fmtInt(binding.vertexPoints + binding.coverPoints),
-					 bodyfit_bench::fmt(fitMs, 1), bodyfit_bench::fmt(bindMs, 1),
+					 bodyfit_bench::fmt(timing.segmentation, 1), bodyfit_bench::fmt(timing.fit, 1),
+					 bodyfit_bench::fmt(timing.cover, 1), bodyfit_bench::fmt(timing.bindFit, 1),
+					 bodyfit_bench::fmt(timing.bindFitCpu, 1),
+					 bodyfit_bench::fmt(timing.report, 1), bodyfit_bench::fmt(bindMs, 1),
 					 bodyfit_bench::fmt(fit.meanRadialError() * 1000.0, 2)});
+		if (part == "fit")
+			continue;
 		for (const bool perAxis : {true, false})
 		{
 			bodyfit::SkinnedBody body(rig, fit, binding, {perAxis});
@@ -147,6 +211,8 @@ BODYFIT_BENCH_SUITE(skinning, "rigged body: per-frame update (pose, skin, ellips
 			}
 		}
 	}
+	if (part == "fit")
+		return bodyfit_bench::emit(ctx, "skinning_fit", fits);
 	const int rc = bodyfit_bench::emit(ctx, "skinning_frames", frames);
 	return std::max(rc, bodyfit_bench::emit(ctx, "skinning_fit", fits));
 }

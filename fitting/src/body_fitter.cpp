@@ -4,6 +4,8 @@
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/kmeans.h"
 #include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/parallel.h"
+#include "bodyfit/fitting/triangle_cover.h"
 
 #include <algorithm>
 #include <array>
@@ -122,12 +124,126 @@ struct Group
 	bool localSplits = false;      ///< split with K-means on the split cluster's points only (see reclusterGroup)
 };
 
+/// MVEE and E_j of one cluster at a time, with scratch of its own: one per thread, so that clusters whose fits are
+/// independent can be fitted at once.
+class ClusterFitter
+{
+public:
+	explicit ClusterFitter(const MveeOptions& mvee) : mvee_(mvee) {}
+
+	double mveeMs = 0.0, errorMs = 0.0;
+
+	/// MVEE and E_j of a cluster. With `parent`, the parent's MVEE core points that are also in this cluster
+	/// seed the active set (mvee.h warm start).
+	void fit(const Group& g, Cluster& c, const Cluster* parent = nullptr)
+	{
+		buffer_.resize(Eigen::Index(c.members.size()), 3);
+		for (std::size_t r = 0; r < c.members.size(); ++r)
+			buffer_.row(Eigen::Index(r)) = g.points.row(c.members[r]);
+		warm_.clear();
+		if (parent != nullptr)
+		{
+			if (rowOf_.size() < std::size_t(g.points.rows()))
+				rowOf_.assign(std::size_t(g.points.rows()), -1);
+			for (std::size_t r = 0; r < c.members.size(); ++r)
+				rowOf_[std::size_t(c.members[r])] = int(r);
+			for (int core : parent->fit.coreIndices)
+			{
+				const int row = rowOf_[std::size_t(parent->members[std::size_t(core)])];
+				if (row >= 0)
+					warm_.push_back(row);
+			}
+			for (int m : c.members)
+				rowOf_[std::size_t(m)] = -1;
+		}
+		solve(g, c);
+	}
+
+	/// Refits cluster c on its members plus its extra points; E_j stays the error over its own members.
+	/// Extras are only ever appended, so the previous core indices are still valid rows and seed the active set.
+	void refitWithExtras(const Group& g, Cluster& c)
+	{
+		const Eigen::Index n = Eigen::Index(c.members.size());
+		buffer_.resize(n + Eigen::Index(c.extras.size()), 3);
+		for (Eigen::Index r = 0; r < n; ++r)
+			buffer_.row(r) = g.points.row(c.members[std::size_t(r)]);
+		for (std::size_t e = 0; e < c.extras.size(); ++e)
+			buffer_.row(n + Eigen::Index(e)) = c.extras[e].transpose();
+		warm_.clear();
+		for (int core : c.fit.coreIndices)
+			if (core >= 0 && core < buffer_.rows())
+				warm_.push_back(core);
+		solve(g, c);
+	}
+
+private:
+	/// The MVEE of buffer_ (warm-started from warm_ when it is not empty) and E_j over c's members.
+	void solve(const Group& g, Cluster& c)
+	{
+		Clock::time_point t0 = Clock::now();
+		c.fit = warm_.empty() ? minimumVolumeEllipsoid(buffer_, mvee_) : minimumVolumeEllipsoid(buffer_, mvee_, warm_);
+		Clock::time_point t1 = Clock::now();
+		mveeMs += std::chrono::duration<double, std::milli>(t1 - t0).count();
+		c.error = meanRadialError(c.fit.ellipsoid, g.points, c.members);
+		errorMs += msSince(t1);
+	}
+
+	MveeOptions mvee_;
+	Eigen::MatrixX3d buffer_;
+	std::vector<int> warm_;  ///< warm-start rows of the cluster being fitted
+	std::vector<int> rowOf_; ///< group point -> row in the cluster being fitted, -1 elsewhere (kept all -1 between uses)
+};
+
+/// One cluster fit of a batch: cluster c of group g, warm-started from `parent` (may be null).
+struct FitTask
+{
+	const Group* g = nullptr;
+	Cluster* c = nullptr;
+	const Cluster* parent = nullptr;
+	bool withExtras = false; ///< refitWithExtras instead of fit
+};
+
 class Refiner
 {
 public:
-	Refiner(const KMeansOptions& kmeans, const MveeOptions& mvee) : kmeans_(kmeans), mvee_(mvee) {}
+	/// `threads` >= 1: independent cluster fits of one step run on that many threads (fitAll).
+	Refiner(const KMeansOptions& kmeans, const MveeOptions& mvee, int threads)
+		: kmeans_(kmeans), fitters_(std::size_t(std::max(1, threads)), ClusterFitter(mvee))
+	{
+	}
 
-	double kmeansMs = 0.0, mveeMs = 0.0, errorMs = 0.0;
+	double kmeansMs = 0.0;
+	double mveeMs() const
+	{
+		double ms = 0.0;
+		for (const ClusterFitter& f : fitters_)
+			ms += f.mveeMs;
+		return ms;
+	}
+	double errorMs() const
+	{
+		double ms = 0.0;
+		for (const ClusterFitter& f : fitters_)
+			ms += f.errorMs;
+		return ms;
+	}
+
+	/// Runs the fits of `tasks` (independent: each writes its own cluster only) on the threads; the result is the
+	/// same for any thread count.
+	void fitAll(const std::vector<FitTask>& tasks)
+	{
+		parallelParts(int(tasks.size()), int(fitters_.size()), [&](int part, int begin, int end) {
+			ClusterFitter& fitter = fitters_[std::size_t(part)];
+			for (int t = begin; t < end; ++t)
+			{
+				const FitTask& task = tasks[std::size_t(t)];
+				if (task.withExtras)
+					fitter.refitWithExtras(*task.g, *task.c);
+				else
+					fitter.fit(*task.g, *task.c, task.parent);
+			}
+		});
+	}
 
 	/// Pruned K-means from `initialCenters`, then an MVEE per non-empty cluster (empty ones are dropped).
 	void initialise(Group& g, const Eigen::MatrixX3d& initialCenters)
@@ -152,8 +268,10 @@ public:
 		g.clusters.assign(std::size_t(k), Cluster{});
 		for (std::size_t i = 0; i < g.assignment.size(); ++i)
 			g.clusters[std::size_t(g.assignment[i])].members.push_back(int(i));
+		std::vector<FitTask> tasks;
 		for (Cluster& c : g.clusters)
-			fitCluster(g, c);
+			tasks.push_back({&g, &c, nullptr, false});
+		fitAll(tasks);
 	}
 
 	/// Seeds for splitting cluster w: the two end points of one of its axes (`axisRank` 0 = longest, the paper), or
@@ -202,6 +320,12 @@ public:
 		for (std::size_t i = 0; i < km.assignment.size(); ++i)
 			if (dirty[std::size_t(km.assignment[i])])
 				fresh[std::size_t(km.assignment[i])].members.push_back(int(i));
+		// Warm start from the cluster these points came from: the old cluster j, or the split one.
+		std::vector<FitTask> tasks;
+		for (int j = 0; j < kNew; ++j)
+			if (dirty[std::size_t(j)])
+				tasks.push_back({&g, &fresh[std::size_t(j)], j < k ? &g.clusters[std::size_t(j)] : &src, false});
+		fitAll(tasks);
 		double oldWorst = 0.0, newWorst = 0.0, oldTotal = 0.0, newTotal = 0.0;
 		for (int j = 0; j < kNew; ++j)
 		{
@@ -213,9 +337,7 @@ public:
 				oldWorst = std::max(oldWorst, old.error);
 				oldTotal += old.error * double(old.members.size());
 			}
-			Cluster& c = fresh[std::size_t(j)];
-			// Warm start from the cluster these points came from: the old cluster j, or the split one.
-			fitCluster(g, c, j < k ? &g.clusters[std::size_t(j)] : &src);
+			const Cluster& c = fresh[std::size_t(j)];
 			newWorst = std::max(newWorst, c.error);
 			newTotal += c.error * double(c.members.size());
 		}
@@ -294,65 +416,10 @@ public:
 		return true;
 	}
 
-	/// Refits cluster c on its members plus its extra points; E_j stays the error over its own members.
-	/// Extras are only ever appended, so the previous core indices are still valid rows and seed the active set.
-	void refitWithExtras(const Group& g, Cluster& c)
-	{
-		Clock::time_point t0 = Clock::now();
-		const Eigen::Index n = Eigen::Index(c.members.size());
-		buffer_.resize(n + Eigen::Index(c.extras.size()), 3);
-		for (Eigen::Index r = 0; r < n; ++r)
-			buffer_.row(r) = g.points.row(c.members[std::size_t(r)]);
-		for (std::size_t e = 0; e < c.extras.size(); ++e)
-			buffer_.row(n + Eigen::Index(e)) = c.extras[e].transpose();
-		warm_.clear();
-		for (int core : c.fit.coreIndices)
-			if (core >= 0 && core < buffer_.rows())
-				warm_.push_back(core);
-		c.fit = warm_.empty() ? minimumVolumeEllipsoid(buffer_, mvee_) : minimumVolumeEllipsoid(buffer_, mvee_, warm_);
-		Clock::time_point t1 = Clock::now();
-		mveeMs += std::chrono::duration<double, std::milli>(t1 - t0).count();
-		c.error = meanRadialError(c.fit.ellipsoid, g.points, c.members);
-		errorMs += msSince(t1);
-	}
-
 private:
-	/// MVEE and E_j of a cluster. With `parent`, the parent's MVEE core points that are also in this cluster
-	/// seed the active set (mvee.h warm start).
-	void fitCluster(const Group& g, Cluster& c, const Cluster* parent = nullptr)
-	{
-		Clock::time_point t0 = Clock::now();
-		buffer_.resize(Eigen::Index(c.members.size()), 3);
-		for (std::size_t r = 0; r < c.members.size(); ++r)
-			buffer_.row(Eigen::Index(r)) = g.points.row(c.members[r]);
-		warm_.clear();
-		if (parent != nullptr)
-		{
-			if (rowOf_.size() < std::size_t(g.points.rows()))
-				rowOf_.assign(std::size_t(g.points.rows()), -1);
-			for (std::size_t r = 0; r < c.members.size(); ++r)
-				rowOf_[std::size_t(c.members[r])] = int(r);
-			for (int core : parent->fit.coreIndices)
-			{
-				const int row = rowOf_[std::size_t(parent->members[std::size_t(core)])];
-				if (row >= 0)
-					warm_.push_back(row);
-			}
-			for (int m : c.members)
-				rowOf_[std::size_t(m)] = -1;
-		}
-		c.fit = warm_.empty() ? minimumVolumeEllipsoid(buffer_, mvee_) : minimumVolumeEllipsoid(buffer_, mvee_, warm_);
-		Clock::time_point t1 = Clock::now();
-		mveeMs += std::chrono::duration<double, std::milli>(t1 - t0).count();
-		c.error = meanRadialError(c.fit.ellipsoid, g.points, c.members);
-		errorMs += msSince(t1);
-	}
-
 	KMeansOptions kmeans_;
-	MveeOptions mvee_;
-	Eigen::MatrixX3d buffer_;
-	std::vector<int> warm_;  ///< warm-start rows of the cluster being fitted
-	std::vector<int> rowOf_; ///< group point -> row in the cluster being fitted, -1 elsewhere (kept all -1 between uses)
+	Eigen::MatrixX3d buffer_; ///< a split cluster's points for its local K-means
+	std::vector<ClusterFitter> fitters_; ///< one per thread
 };
 
 void validate(const TriMesh& mesh, const std::vector<Region>& labels, const BodyFitOptions& o)
@@ -383,6 +450,8 @@ void validate(const TriMesh& mesh, const std::vector<Region>& labels, const Body
 		throw InvalidInputError("fitBody: minRadiusFraction and mveeTolerance must be finite and > 0");
 	if (!std::isfinite(o.height))
 		throw InvalidInputError("fitBody: height must be finite");
+	if (o.threads < 0)
+		throw InvalidInputError("fitBody: threads must be >= 0 (0 = every hardware thread)");
 }
 
 /// Groups in output order: head, torso, arms, legs (Region order, torso parts merged), whole.
@@ -463,54 +532,19 @@ struct CoverStats
 	double ms = 0.0;
 };
 
-/// A piece of a triangle across a cluster boundary: its corners, and the clusters of its triangle's corners
-/// (checked first: they usually contain it).
-struct CoverPiece
-{
-	std::array<Eigen::Vector3d, 3> p;
-	std::array<int, 3> clusters;
-};
-
-/// The triangles across a cluster boundary (all corners fitted; `owner` = cluster id per vertex, -1 unfitted), cut
-/// into sub-triangles: a barycentric grid with the longest edge in pieces no longer than `spacing` (at most
-/// 64 cuts per edge, coverCutLevel).
-std::vector<CoverPiece> boundaryPieces(const TriMesh& mesh, const std::vector<int>& owner, double spacing)
-{
-	std::vector<CoverPiece> pieces;
-	for (int f = 0; f < mesh.F.rows(); ++f)
-	{
-		const std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
-		const std::array<int, 3> c = {owner[std::size_t(v[0])], owner[std::size_t(v[1])], owner[std::size_t(v[2])]};
-		if (c[0] < 0 || c[1] < 0 || c[2] < 0 || (c[0] == c[1] && c[1] == c[2]))
-			continue;
-		const Eigen::Vector3d a = mesh.V.row(v[0]), b = mesh.V.row(v[1]), d = mesh.V.row(v[2]);
-		const int level = coverCutLevel(a, b, d, spacing);
-		auto at = [&](int i, int j) { return Eigen::Vector3d((double(i) * a + double(j) * b + double(level - i - j) * d) / double(level)); };
-		for (int i = 0; i < level; ++i)
-			for (int j = 0; i + j < level; ++j)
-			{
-				pieces.push_back({{at(i, j), at(i + 1, j), at(i, j + 1)}, c});
-				if (i + j + 2 <= level)
-					pieces.push_back({{at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)}, c});
-			}
-	}
-	return pieces;
-}
-
 /// Triangle cover (coverTriangles, see body_fitter.h). The clusters partition the vertices, so every ellipsoid
 /// encloses its own vertices and, by convexity, every triangle whose corners are all its own. A triangle whose corners
 /// belong to different clusters can bulge out between two ellipsoids. Every such triangle is cut on a barycentric grid
-/// into pieces whose edges are at most `spacing` (boundaryPieces). A piece that no single
-/// ellipsoid contains (all three corners at zeta <= 1 + 1e-9, the MVEE's own enclosure tolerance) goes to the corner
-/// cluster whose ellipsoid comes closest (smallest max zeta of the piece's corners; ties: lower index): its corners
-/// outside that ellipsoid become extra points of the cluster, and the clusters that received points are refitted.
+/// into pieces whose edges are at most `spacing`; a piece that no single ellipsoid contains hands its corners outside
+/// the closest corner cluster to that cluster (TriangleCover, triangle_cover.h, has the rules), and the clusters that
+/// received points are refitted (in parallel over `threads`: each refit depends only on its own cluster).
 /// Extra points stay in their cluster's MVEE input, so a piece handed to a cluster stays inside it; refits move
 /// ellipsoids, so the check repeats until every piece lies inside one ellipsoid. Each round adds at least one new
 /// point (a piece whose corners were all enclosed would be contained), so the loop ends; `maxRounds` is a safety cap.
 /// Pieces instead of whole triangles let the ellipsoids grow less (body_fitter.h has the numbers).
-CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner, double spacing)
+CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner, double spacing,
+						  int threads)
 {
-	constexpr double kInside = 1.0 + 1e-9; // the MVEE's own enclosure guarantee (mvee.h)
 	constexpr int maxRounds = 50;
 	const Clock::time_point t0 = Clock::now();
 	CoverStats stats;
@@ -532,59 +566,28 @@ CoverStats coverTriangles(const TriMesh& mesh, std::vector<Group>& groups, Refin
 		return groups[std::size_t(refs[std::size_t(id)].g)].clusters[std::size_t(refs[std::size_t(id)].j)];
 	};
 
-	const std::vector<CoverPiece> pieces = boundaryPieces(mesh, owner, spacing);
-
+	TriangleCover cover(mesh, owner, spacing);
 	const int k = int(refs.size());
-	std::vector<Eigen::AlignedBox3d> boxes(refs.size());
-	std::vector<char> grew(refs.size(), 0);
+	std::vector<Ellipsoid> ellipsoids(refs.size());
+	std::vector<char> grew(refs.size(), 0), targeted;
+	std::vector<TriangleCover::Handout> handouts;
+	std::vector<FitTask> refit;
 	for (int round = 0;; ++round)
 	{
 		for (int id = 0; id < k; ++id)
-			boxes[std::size_t(id)] = cluster(id).fit.ellipsoid.aabb();
-		auto maxZeta = [&](int id, const CoverPiece& piece) {
-			const Ellipsoid& e = cluster(id).fit.ellipsoid;
-			return std::max({e.zeta(piece.p[0]), e.zeta(piece.p[1]), e.zeta(piece.p[2])});
-		};
-		auto contains = [&](int id, const CoverPiece& piece) {
-			const Eigen::AlignedBox3d& box = boxes[std::size_t(id)];
-			return box.contains(piece.p[0]) && box.contains(piece.p[1]) && box.contains(piece.p[2]) &&
-				   maxZeta(id, piece) <= kInside;
-		};
-		stats.uncovered = 0;
-		std::fill(grew.begin(), grew.end(), 0);
-		for (const CoverPiece& piece : pieces)
-		{
-			bool covered = contains(piece.clusters[0], piece) || contains(piece.clusters[1], piece) ||
-						   contains(piece.clusters[2], piece);
-			for (int id = 0; id < k && !covered; ++id)
-				covered = contains(id, piece);
-			if (covered)
-				continue;
-			++stats.uncovered;
-			if (round == maxRounds)
-				continue;
-			int best = -1;
-			double bestZeta = 0.0;
-			for (int id : piece.clusters)
-			{
-				const double z = maxZeta(id, piece);
-				if (best < 0 || z < bestZeta || (z == bestZeta && id < best))
-				{
-					best = id;
-					bestZeta = z;
-				}
-			}
-			Cluster& target = cluster(best);
-			for (const Eigen::Vector3d& q : piece.p)
-				if (!(target.fit.ellipsoid.zeta(q) <= kInside))
-					target.extras.push_back(q);
-			grew[std::size_t(best)] = 1;
-		}
+			ellipsoids[std::size_t(id)] = cluster(id).fit.ellipsoid;
+		handouts.clear();
+		stats.uncovered = cover.check(ellipsoids, grew, handouts, targeted, threads);
 		if (stats.uncovered == 0 || round == maxRounds)
 			break;
+		for (const TriangleCover::Handout& h : handouts)
+			cluster(h.cluster).extras.push_back(h.point);
+		grew = targeted; // every cluster an uncovered piece went to is refitted
+		refit.clear();
 		for (int id = 0; id < k; ++id)
 			if (grew[std::size_t(id)])
-				refiner.refitWithExtras(groups[std::size_t(refs[std::size_t(id)].g)], cluster(id));
+				refit.push_back({&groups[std::size_t(refs[std::size_t(id)].g)], &cluster(id), nullptr, true});
+		refiner.fitAll(refit);
 		++stats.rounds;
 	}
 	for (int id = 0; id < k; ++id)
@@ -671,9 +674,10 @@ RefineStatus refine(std::vector<Group>& groups, Refiner& refiner, const BodyFitO
 }
 
 /// Runs the triangle cover with pieces of at most `spacing` metres and records its statistics in `result`.
-void applyCover(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner, double spacing, BodyFit& result)
+void applyCover(const TriMesh& mesh, std::vector<Group>& groups, Refiner& refiner, double spacing, int threads,
+				BodyFit& result)
 {
-	const CoverStats cover = coverTriangles(mesh, groups, refiner, spacing);
+	const CoverStats cover = coverTriangles(mesh, groups, refiner, spacing, threads);
 	result.coverRounds = cover.rounds;
 	result.coverExtraPoints = cover.extraPoints;
 	result.setTiming("fitting.cover", cover.ms);
@@ -820,7 +824,8 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 	// (a) Initial clusters: torso k = number of its parts (means of the parts), every other region k = 1.
 	std::vector<Eigen::MatrixX3d> initialCenters;
 	std::vector<Group> groups = makeGroups(mesh, labels, metres, initialCenters);
-	Refiner refiner(kmeans, mvee);
+	const int threads = resolveThreads(metres.threads);
+	Refiner refiner(kmeans, mvee, threads);
 	for (std::size_t gi = 0; gi < groups.size(); ++gi)
 		refiner.initialise(groups[gi], initialCenters[gi]);
 	if (clusterCount(groups) > metres.maxEllipsoids)
@@ -831,7 +836,7 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 	// (b)-(e) Refinement, then the triangle cover.
 	result.status = refine(groups, refiner, metres, result);
 	if (metres.coverTriangles)
-		applyCover(mesh, groups, refiner, metres.coverSpacing, result);
+		applyCover(mesh, groups, refiner, metres.coverSpacing, threads, result);
 	const double fittingMs = msSince(t0);
 
 	const Clock::time_point tReport = Clock::now();
@@ -841,8 +846,8 @@ BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const Bo
 
 	result.setTiming("fitting", fittingMs);
 	result.setTiming("fitting.kmeans", refiner.kmeansMs);
-	result.setTiming("fitting.mvee", refiner.mveeMs);
-	result.setTiming("fitting.error", refiner.errorMs);
+	result.setTiming("fitting.mvee", refiner.mveeMs());
+	result.setTiming("fitting.error", refiner.errorMs());
 	if (metres.trueDistance)
 		result.setTiming("report", reportMs);
 	return result;

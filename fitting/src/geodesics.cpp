@@ -3,6 +3,8 @@
 
 #include "bodyfit/fitting/geodesics.h"
 
+#include "bodyfit/fitting/parallel.h"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -109,22 +111,19 @@ struct HalfEdges
 	}
 };
 
-/// The edges of the graph: every mesh edge once, plus (options.faceDiagonals) the unfolded diagonal across every
+/// The graph edges found from the half-edges of vertices [begin, end): every mesh edge once (from its smaller end,
+/// or from the only side that has a half-edge), plus (options.faceDiagonals) the unfolded diagonal across every
 /// manifold interior edge.
-std::vector<WeightedEdge> graphEdges(const TriMesh& mesh, const GeodesicOptions& options)
+void graphEdgesFrom(const TriMesh& mesh, const HalfEdges& he, const GeodesicOptions& options, int begin, int end,
+	std::vector<WeightedEdge>& edges)
 {
-	const int n = mesh.vertexCount();
-	const HalfEdges he(mesh);
-	std::vector<WeightedEdge> edges;
-	edges.reserve(he.edges.size() * (options.faceDiagonals ? 2 : 1));
-	for (int a = 0; a < n; ++a)
+	for (int a = begin; a < end; ++a)
 	{
 		for (int i = he.offset[size_t(a)]; i < he.offset[size_t(a) + 1]; ++i)
 		{
 			const int b = he.edges[size_t(i)].to;
 			int d = -1;
 			const int twins = he.find(b, a, &d);
-			// Each undirected edge once: from its smaller end, or from the only side that has a half-edge.
 			if (a > b && twins > 0)
 				continue;
 			const Eigen::Vector3d pa = mesh.V.row(a).transpose(), pb = mesh.V.row(b).transpose();
@@ -139,7 +138,48 @@ std::vector<WeightedEdge> graphEdges(const TriMesh& mesh, const GeodesicOptions&
 			}
 		}
 	}
+}
+
+/// The edges of the graph, vertex by vertex (graphEdgesFrom over every vertex; vertex ranges on `threads`,
+/// concatenated in vertex order, so the list does not depend on the thread count).
+std::vector<WeightedEdge> graphEdges(const TriMesh& mesh, const GeodesicOptions& options, int threads)
+{
+	const int n = mesh.vertexCount();
+	const HalfEdges he(mesh);
+	std::vector<std::vector<WeightedEdge>> parts(size_t(std::max(1, threads)));
+	parallelParts(n, threads, [&](int part, int begin, int end) {
+		parts[size_t(part)].reserve(size_t(he.offset[size_t(end)] - he.offset[size_t(begin)]) * 2);
+		graphEdgesFrom(mesh, he, options, begin, end, parts[size_t(part)]);
+	});
+	std::vector<WeightedEdge> edges = std::move(parts[0]);
+	for (size_t p = 1; p < parts.size(); ++p)
+		edges.insert(edges.end(), parts[p].begin(), parts[p].end());
 	return edges;
+}
+
+/// One directed edge of a vertex before the neighbours are sorted and merged.
+struct Entry
+{
+	int to;
+	double length;
+	char mesh;
+};
+
+/// Sorts a vertex's entries by neighbour, then length, mesh edges first (a total order on distinct entries, so the
+/// result does not depend on the sort), and returns the number of distinct neighbours.
+int sortNeighbours(Entry* first, Entry* last)
+{
+	std::sort(first, last, [](const Entry& x, const Entry& y) {
+		if (x.to != y.to)
+			return x.to < y.to;
+		if (x.length != y.length)
+			return x.length < y.length;
+		return x.mesh > y.mesh;
+	});
+	int count = 0;
+	for (const Entry* it = first; it != last; ++it)
+		count += it == first || it->to != (it - 1)->to ? 1 : 0;
+	return count;
 }
 
 } // namespace
@@ -153,7 +193,8 @@ GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& optio
 	const std::vector<std::pair<int, int>>& bridges)
 {
 	const int n = mesh.vertexCount();
-	std::vector<WeightedEdge> edges = graphEdges(mesh, options);
+	const int threads = resolveThreads(options.threads);
+	std::vector<WeightedEdge> edges = graphEdges(mesh, options, threads);
 	for (const auto& [a, b] : bridges)
 		if (a >= 0 && a < n && b >= 0 && b < n && a != b)
 			edges.push_back({std::min(a, b), std::max(a, b), (mesh.V.row(a) - mesh.V.row(b)).norm(), 1});
@@ -167,12 +208,6 @@ GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& optio
 	}
 	for (int v = 0; v < n; ++v)
 		degree[size_t(v) + 1] += degree[size_t(v)];
-	struct Entry
-	{
-		int to;
-		double length;
-		char mesh;
-	};
 	std::vector<Entry> entries(edges.size() * 2);
 	{
 		std::vector<int> fill(degree.begin(), degree.end() - 1);
@@ -182,33 +217,34 @@ GeodesicSolver::GeodesicSolver(const TriMesh& mesh, const GeodesicOptions& optio
 			entries[size_t(fill[size_t(e.b)]++)] = {e.a, e.length, e.mesh};
 		}
 	}
+	// Per vertex (in parallel: each vertex owns its range): sort, and count the distinct neighbours.
+	std::vector<int> distinct(static_cast<size_t>(n), 0);
+	parallelRanges(n, threads, [&](int begin, int end) {
+		for (int v = begin; v < end; ++v)
+			distinct[size_t(v)] = sortNeighbours(entries.data() + degree[size_t(v)], entries.data() + degree[size_t(v) + 1]);
+	});
 	offsets_.assign(static_cast<size_t>(n) + 1, 0);
-	targets_.clear();
-	weights_.clear();
-	isMeshEdge_.clear();
-	targets_.reserve(entries.size());
-	weights_.reserve(entries.size());
-	isMeshEdge_.reserve(entries.size());
 	for (int v = 0; v < n; ++v)
-	{
-		const auto first = entries.begin() + degree[size_t(v)], last = entries.begin() + degree[size_t(v) + 1];
-		std::sort(first, last, [](const Entry& x, const Entry& y) {
-			if (x.to != y.to)
-				return x.to < y.to;
-			if (x.length != y.length)
-				return x.length < y.length;
-			return x.mesh > y.mesh;
-		});
-		for (auto it = first; it != last; ++it)
+		offsets_[size_t(v) + 1] = offsets_[size_t(v)] + distinct[size_t(v)];
+	targets_.resize(size_t(offsets_[size_t(n)]));
+	weights_.resize(targets_.size());
+	isMeshEdge_.resize(targets_.size());
+	parallelRanges(n, threads, [&](int begin, int end) {
+		for (int v = begin; v < end; ++v)
 		{
-			if (it != first && it->to == (it - 1)->to)
-				continue;
-			targets_.push_back(it->to);
-			weights_.push_back(it->length);
-			isMeshEdge_.push_back(it->mesh);
+			const Entry* first = entries.data() + degree[size_t(v)];
+			int out = offsets_[size_t(v)];
+			for (const Entry* it = first; it != entries.data() + degree[size_t(v) + 1]; ++it)
+			{
+				if (it != first && it->to == (it - 1)->to)
+					continue;
+				targets_[size_t(out)] = it->to;
+				weights_[size_t(out)] = it->length;
+				isMeshEdge_[size_t(out)] = it->mesh;
+				++out;
+			}
 		}
-		offsets_[size_t(v) + 1] = int(targets_.size());
-	}
+	});
 	heap_.reserve(static_cast<size_t>(n));
 }
 

@@ -555,6 +555,307 @@ void requireGltfBuffers(const GltfContext& g, const Json& doc, const char* key, 
 	}
 }
 
+// glTF 2.0 references: every index names an existing object and every accessor reads inside its buffer view,
+// every view inside its buffer. assimp 5.2's glTF2 reader trusts them (a skin without inverseBindMatrices, from a
+// fuzzed GLB now in tests/data/robust_fuzz_glb_skin_no_ibm.glb, was a null-pointer crash inside Importer::ReadFile).
+
+/// Largest accessor count accepted without a buffer view (assimp allocates count elements of zeros): 2^26.
+constexpr std::uint64_t kMaxGltfUnbackedCount = std::uint64_t(1) << 26;
+
+/// The array `key` of the document (empty when absent). \throws MeshLoadError when it is there but not an array.
+const Json& gltfArray(const GltfContext& g, const Json& doc, const char* key)
+{
+	static const Json empty = Json::array();
+	if (!doc.contains(key))
+		return empty;
+	if (!doc[key].is_array())
+		refuse(g.path, std::string("glTF ") + key + " is not an array");
+	return doc[key];
+}
+
+/// `v` as an index into an array of `count` objects named `what`. \throws MeshLoadError naming `where` when it is
+/// not an unsigned integer below `count`.
+long long gltfIndexValue(const GltfContext& g, const Json& v, std::size_t count, const char* what,
+						 const std::string& where)
+{
+	if (!v.is_number_unsigned() || v.get<std::uint64_t>() >= count)
+		refuse(g.path, where + " is " + v.dump() + ", not one of the " + std::to_string(count) + " " + what);
+	return (long long)v.get<std::uint64_t>();
+}
+
+/// obj[key] as an index into an array of `count` objects named `what`; -1 when absent and not `required`.
+/// \throws MeshLoadError naming `where` when it is not an unsigned integer below `count`.
+long long gltfIndex(const GltfContext& g, const Json& obj, const char* key, std::size_t count, const char* what,
+					const std::string& where, bool required)
+{
+	if (!obj.is_object() || !obj.contains(key))
+	{
+		if (required)
+			refuse(g.path, where + " has no " + key);
+		return -1;
+	}
+	return gltfIndexValue(g, obj[key], count, what, where + "." + key);
+}
+
+/// obj[key] as an unsigned number (`fallback` when absent). \throws MeshLoadError when it is not one.
+std::uint64_t gltfUnsigned(const GltfContext& g, const Json& obj, const char* key, std::uint64_t fallback,
+						   const std::string& where)
+{
+	if (!obj.is_object() || !obj.contains(key))
+		return fallback;
+	if (!obj[key].is_number_unsigned())
+		refuse(g.path, where + "." + key + " is " + obj[key].dump() + ", not an unsigned integer");
+	return obj[key].get<std::uint64_t>();
+}
+
+std::string gltfWhere(const char* key, std::size_t i)
+{
+	return std::string("glTF ") + key + "[" + std::to_string(i) + "]";
+}
+
+/// Every buffer view lies inside its buffer (byteOffset + byteLength <= the buffer's byteLength) with a stride in
+/// [4, 252] when it has one (the glTF 2.0 limits).
+void requireGltfBufferViews(const GltfContext& g, const Json& doc)
+{
+	const Json& buffers = gltfArray(g, doc, "buffers");
+	const Json& views = gltfArray(g, doc, "bufferViews");
+	for (std::size_t i = 0; i < views.size(); ++i)
+	{
+		const std::string where = gltfWhere("bufferViews", i);
+		const long long b = gltfIndex(g, views[i], "buffer", buffers.size(), "buffers", where, true);
+		const std::uint64_t offset = gltfUnsigned(g, views[i], "byteOffset", 0, where);
+		const std::uint64_t length = gltfUnsigned(g, views[i], "byteLength", 0, where);
+		const std::uint64_t bufferLength = gltfUnsigned(g, buffers[std::size_t(b)], "byteLength", 0, gltfWhere("buffers", std::size_t(b)));
+		if (offset > bufferLength || length > bufferLength - offset)
+			refuse(g.path, where + " (bytes " + std::to_string(offset) + " + " + std::to_string(length) +
+							   ") runs past the end of buffer " + std::to_string(b) + " (" +
+							   std::to_string(bufferLength) + " bytes)");
+		const std::uint64_t stride = gltfUnsigned(g, views[i], "byteStride", 0, where);
+		if (views[i].contains("byteStride") && (stride < 4 || stride > 252))
+			refuse(g.path, where + ".byteStride is " + std::to_string(stride) + " (glTF allows 4-252)");
+	}
+}
+
+/// Bytes of one element of an accessor (matrix columns padded to 4 bytes, as glTF lays them out); 0 when the
+/// component type or the type is not a glTF 2.0 one.
+std::uint64_t gltfElementBytes(std::uint64_t componentType, const std::string& type)
+{
+	std::uint64_t component = 0;
+	switch (componentType)
+	{
+	case 5120: case 5121: component = 1; break;
+	case 5122: case 5123: component = 2; break;
+	case 5125: case 5126: component = 4; break;
+	default: return 0;
+	}
+	const std::vector<std::pair<std::string, int>> vectors = {{"SCALAR", 1}, {"VEC2", 2}, {"VEC3", 3}, {"VEC4", 4}};
+	for (const auto& [name, n] : vectors)
+		if (type == name)
+			return component * std::uint64_t(n);
+	for (int n = 2; n <= 4; ++n)
+		if (type == "MAT" + std::to_string(n))
+			return std::uint64_t(n) * ((component * std::uint64_t(n) + 3) / 4 * 4);
+	return 0;
+}
+
+/// `count` elements of `elementBytes`, `stride` apart (0: tightly packed), from `offset` fit in buffer view `view`.
+void requireGltfReadInView(const GltfContext& g, const Json& doc, long long view, std::uint64_t offset,
+						   std::uint64_t count, std::uint64_t elementBytes, std::uint64_t stride, const std::string& where)
+{
+	const Json& v = doc["bufferViews"][std::size_t(view)];
+	const std::uint64_t length = gltfUnsigned(g, v, "byteLength", 0, gltfWhere("bufferViews", std::size_t(view)));
+	if (stride == 0)
+		stride = elementBytes;
+	// offset + (count - 1) * stride + elementBytes <= length, without overflow (count >= 1, stride <= 252).
+	const bool fits = offset <= length && elementBytes <= length - offset &&
+					  (count - 1) <= (length - offset - elementBytes) / std::max<std::uint64_t>(stride, 1);
+	if (!fits)
+		refuse(g.path, where + ": " + std::to_string(count) + " elements of " + std::to_string(elementBytes) +
+						   " bytes from byte " + std::to_string(offset) + " run past the end of buffer view " +
+						   std::to_string(view) + " (" + std::to_string(length) + " bytes)");
+}
+
+/// A sparse accessor's indices and values lie inside their views and number at most the accessor's count.
+void requireGltfSparse(const GltfContext& g, const Json& doc, const Json& sparse, std::uint64_t count,
+					   std::uint64_t elementBytes, const std::string& where)
+{
+	const std::size_t views = gltfArray(g, doc, "bufferViews").size();
+	const std::uint64_t n = gltfUnsigned(g, sparse, "count", 0, where + ".sparse");
+	if (n < 1 || n > count)
+		refuse(g.path, where + ".sparse.count is " + std::to_string(n) + " (1 to the accessor's " +
+						   std::to_string(count) + ")");
+	for (const char* part : {"indices", "values"})
+	{
+		const std::string at = where + ".sparse." + part;
+		if (!sparse.contains(part) || !sparse[part].is_object())
+			refuse(g.path, at + " is missing");
+		const Json& p = sparse[part];
+		const long long view = gltfIndex(g, p, "bufferView", views, "bufferViews", at, true);
+		std::uint64_t bytes = elementBytes;
+		if (std::string(part) == "indices")
+		{
+			const std::uint64_t type = gltfUnsigned(g, p, "componentType", 0, at);
+			bytes = type == 5121 ? 1 : type == 5123 ? 2 : type == 5125 ? 4 : 0;
+			if (bytes == 0)
+				refuse(g.path, at + ".componentType is " + std::to_string(type) + " (5121, 5123 or 5125)");
+		}
+		requireGltfReadInView(g, doc, view, gltfUnsigned(g, p, "byteOffset", 0, at), n, bytes, 0, at);
+	}
+}
+
+/// Every accessor has a glTF 2.0 component type and type, count >= 1, and reads inside its buffer view (or, with
+/// no view, is small enough for assimp to allocate); its sparse part likewise.
+void requireGltfAccessors(const GltfContext& g, const Json& doc)
+{
+	const Json& accessors = gltfArray(g, doc, "accessors");
+	const Json& views = gltfArray(g, doc, "bufferViews");
+	for (std::size_t i = 0; i < accessors.size(); ++i)
+	{
+		const Json& a = accessors[i];
+		const std::string where = gltfWhere("accessors", i);
+		const std::uint64_t componentType = gltfUnsigned(g, a, "componentType", 0, where);
+		const std::string type = a.is_object() && a.contains("type") && a["type"].is_string() ? a["type"].get<std::string>() : "";
+		const std::uint64_t element = gltfElementBytes(componentType, type);
+		if (element == 0)
+			refuse(g.path, where + " has component type " + std::to_string(componentType) + " and type '" + type +
+							   "' (not a glTF 2.0 accessor)");
+		const std::uint64_t count = gltfUnsigned(g, a, "count", 0, where);
+		if (count < 1)
+			refuse(g.path, where + ".count is 0 (at least 1)");
+		const long long view = gltfIndex(g, a, "bufferView", views.size(), "bufferViews", where, false);
+		if (view >= 0)
+			requireGltfReadInView(g, doc, view, gltfUnsigned(g, a, "byteOffset", 0, where), count, element,
+								  gltfUnsigned(g, views[std::size_t(view)], "byteStride", 0, where), where);
+		else if (count > kMaxGltfUnbackedCount)
+			refuse(g.path, where + " has no buffer view and a count of " + std::to_string(count) + " (at most " +
+							   std::to_string(kMaxGltfUnbackedCount) + ")");
+		if (a.contains("sparse"))
+			requireGltfSparse(g, doc, a["sparse"], count, element, where);
+	}
+}
+
+/// Every primitive's attributes, indices and morph targets name accessors; every node's mesh and skin exist; every
+/// scene's nodes exist.
+void requireGltfMeshReferences(const GltfContext& g, const Json& doc)
+{
+	const std::size_t accessors = gltfArray(g, doc, "accessors").size();
+	const Json& meshes = gltfArray(g, doc, "meshes");
+	for (std::size_t m = 0; m < meshes.size(); ++m)
+	{
+		const Json empty = Json::array();
+		const Json& primitives = meshes[m].is_object() && meshes[m].contains("primitives") ? meshes[m]["primitives"] : empty;
+		for (std::size_t p = 0; p < primitives.size(); ++p)
+		{
+			const std::string where = gltfWhere("meshes", m) + ".primitives[" + std::to_string(p) + "]";
+			gltfIndex(g, primitives[p], "indices", accessors, "accessors", where, false);
+			std::vector<std::pair<std::string, const Json*>> sets = {{"attributes", nullptr}};
+			if (primitives[p].is_object() && primitives[p].contains("attributes"))
+				sets[0].second = &primitives[p]["attributes"];
+			if (primitives[p].is_object() && primitives[p].contains("targets") && primitives[p]["targets"].is_array())
+				for (std::size_t t = 0; t < primitives[p]["targets"].size(); ++t)
+					sets.push_back({"targets[" + std::to_string(t) + "]", &primitives[p]["targets"][t]});
+			for (const auto& [name, set] : sets)
+				if (set != nullptr && set->is_object())
+					for (auto it = set->begin(); it != set->end(); ++it)
+						gltfIndex(g, *set, it.key().c_str(), accessors, "accessors", where + "." + name, true);
+		}
+	}
+	const Json& nodes = gltfArray(g, doc, "nodes");
+	for (std::size_t n = 0; n < nodes.size(); ++n)
+	{
+		gltfIndex(g, nodes[n], "mesh", meshes.size(), "meshes", gltfWhere("nodes", n), false);
+		gltfIndex(g, nodes[n], "skin", gltfArray(g, doc, "skins").size(), "skins", gltfWhere("nodes", n), false);
+	}
+	const Json& scenes = gltfArray(g, doc, "scenes");
+	for (std::size_t s = 0; s < scenes.size(); ++s)
+		if (scenes[s].is_object() && scenes[s].contains("nodes") && scenes[s]["nodes"].is_array())
+			for (std::size_t k = 0; k < scenes[s]["nodes"].size(); ++k)
+				gltfIndexValue(g, scenes[s]["nodes"][k], nodes.size(), "nodes",
+							   gltfWhere("scenes", s) + ".nodes[" + std::to_string(k) + "]");
+	gltfIndex(g, doc, "scene", scenes.size(), "scenes", "glTF", false);
+}
+
+/// The accessor `index` has type `type`, float components and at least `count` elements.
+void requireGltfAccessorShape(const GltfContext& g, const Json& doc, long long index, const char* type,
+							  std::uint64_t count, const std::string& where)
+{
+	const Json& a = doc["accessors"][std::size_t(index)];
+	const std::string what = where + " (accessor " + std::to_string(index) + ")";
+	if (a["type"] != type || gltfUnsigned(g, a, "componentType", 0, what) != 5126)
+		refuse(g.path, what + " is not a float " + type);
+	if (gltfUnsigned(g, a, "count", 0, what) < count)
+		refuse(g.path, what + " has " + a["count"].dump() + " elements, fewer than " + std::to_string(count));
+}
+
+/// Every skin names existing joint nodes (at least one) and float MAT4 inverse bind matrices, one per joint.
+/// glTF 2.0 makes inverseBindMatrices optional, but assimp 5.2's glTF2 reader dereferences it unconditionally
+/// (the crash of tests/data/robust_fuzz_glb_skin_no_ibm.glb), so a skin without it is refused here.
+void requireGltfSkins(const GltfContext& g, const Json& doc)
+{
+	const Json& skins = gltfArray(g, doc, "skins");
+	const std::size_t nodes = gltfArray(g, doc, "nodes").size();
+	const std::size_t accessors = gltfArray(g, doc, "accessors").size();
+	for (std::size_t s = 0; s < skins.size(); ++s)
+	{
+		const std::string where = gltfWhere("skins", s);
+		if (!skins[s].is_object() || !skins[s].contains("joints") || !skins[s]["joints"].is_array() ||
+			skins[s]["joints"].empty())
+			refuse(g.path, where + " has no joints");
+		const Json& joints = skins[s]["joints"];
+		for (std::size_t j = 0; j < joints.size(); ++j)
+			gltfIndexValue(g, joints[j], nodes, "nodes", where + ".joints[" + std::to_string(j) + "]");
+		gltfIndex(g, skins[s], "skeleton", nodes, "nodes", where, false);
+		if (!skins[s].contains("inverseBindMatrices"))
+			refuse(g.path, where + " has no inverseBindMatrices (optional in glTF 2.0, but assimp 5.2 cannot read a "
+								   "skin without them)");
+		const long long ibm = gltfIndex(g, skins[s], "inverseBindMatrices", accessors, "accessors", where, true);
+		requireGltfAccessorShape(g, doc, ibm, "MAT4", joints.size(), where + ".inverseBindMatrices");
+	}
+}
+
+/// Every animation channel names an existing sampler and node; every sampler's input (float SCALAR key times)
+/// and output accessors exist.
+void requireGltfAnimations(const GltfContext& g, const Json& doc)
+{
+	const Json& animations = gltfArray(g, doc, "animations");
+	const std::size_t nodes = gltfArray(g, doc, "nodes").size();
+	const std::size_t accessors = gltfArray(g, doc, "accessors").size();
+	for (std::size_t a = 0; a < animations.size(); ++a)
+	{
+		const std::string where = gltfWhere("animations", a);
+		const Json& samplers = gltfArray(g, animations[a], "samplers");
+		for (std::size_t s = 0; s < samplers.size(); ++s)
+		{
+			const std::string at = where + ".samplers[" + std::to_string(s) + "]";
+			const long long input = gltfIndex(g, samplers[s], "input", accessors, "accessors", at, true);
+			gltfIndex(g, samplers[s], "output", accessors, "accessors", at, true);
+			requireGltfAccessorShape(g, doc, input, "SCALAR", 1, at + ".input");
+		}
+		const Json& channels = gltfArray(g, animations[a], "channels");
+		for (std::size_t c = 0; c < channels.size(); ++c)
+		{
+			const std::string at = where + ".channels[" + std::to_string(c) + "]";
+			gltfIndex(g, channels[c], "sampler", samplers.size(), "samplers", at, true);
+			if (channels[c].is_object() && channels[c].contains("target"))
+				gltfIndex(g, channels[c]["target"], "node", nodes, "nodes", at + ".target", false);
+		}
+	}
+}
+
+/// A glTF 2.0 document's references (see above). glTF 1.0 names objects by key; it is left to the other checks.
+void requireGltfReferences(const GltfContext& g, const Json& doc)
+{
+	const bool v2 = doc.contains("asset") && doc["asset"].is_object() && doc["asset"].contains("version") &&
+					doc["asset"]["version"].is_string() && doc["asset"]["version"].get<std::string>().rfind("2", 0) == 0;
+	if (!v2)
+		return;
+	requireGltfBufferViews(g, doc);
+	requireGltfAccessors(g, doc);
+	requireGltfMeshReferences(g, doc);
+	requireGltfSkins(g, doc);
+	requireGltfAnimations(g, doc);
+}
+
 void requireSafeGltfJson(const GltfContext& g, const std::string& text)
 {
 	const std::string depth = jsonDepthProblem(text);
@@ -566,6 +867,7 @@ void requireSafeGltfJson(const GltfContext& g, const std::string& text)
 	requireGltfNodeTree(g, doc);
 	requireGltfBuffers(g, doc, "buffers", true);
 	requireGltfBuffers(g, doc, "images", false);
+	requireGltfReferences(g, doc);
 }
 
 std::uint32_t le32(const std::string& b, std::size_t at)

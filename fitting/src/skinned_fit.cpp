@@ -2,6 +2,7 @@
 #include "bodyfit/fitting/skinned_fit.h"
 
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/triangle_cover.h"
 
 #include <Eigen/Eigenvalues>
 
@@ -47,8 +48,8 @@ std::vector<std::vector<BoundPoint>> bindPoints(const TriMesh& mesh, const std::
 	for (int f = 0; f < mesh.faceCount(); ++f)
 	{
 		const std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
-		const std::array<int, 3> c = {owner[std::size_t(v[0])], owner[std::size_t(v[1])], owner[std::size_t(v[2])]};
-		if (c[0] < 0 || c[1] < 0 || c[2] < 0 || (c[0] == c[1] && c[1] == c[2]))
+		std::array<int, 3> c{};
+		if (!crossesClusters(mesh, owner, f, c))
 			continue;
 		const Eigen::Vector3d a = mesh.V.row(v[0]), b = mesh.V.row(v[1]), d = mesh.V.row(v[2]);
 		const int level = coverCutLevel(a, b, d, spacing);

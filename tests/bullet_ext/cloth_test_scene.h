@@ -34,6 +34,23 @@ struct RefEllipsoid
 	}
 };
 
+/// zeta(p) of one compound ellipsoid (its local data) in long double: sum_i ((R^T (p - c))_i / a_i)^2, the reference
+/// the robustness tests compare btScalar results with.
+inline long double refZeta(const btEllipsoidLocalData& e, const btVector3& p)
+{
+	typedef long double Real;
+	const Real d[3] = {Real(p.x()) - Real(e.m_center.x()), Real(p.y()) - Real(e.m_center.y()),
+					   Real(p.z()) - Real(e.m_center.z())};
+	Real z = 0;
+	for (int i = 0; i < 3; ++i)
+	{
+		const Real l = Real(e.m_basis[0][i]) * d[0] + Real(e.m_basis[1][i]) * d[1] + Real(e.m_basis[2][i]) * d[2];
+		const Real r = l / Real(e.m_semiAxes[i]);
+		z += r * r;
+	}
+	return z;
+}
+
 inline Eigen::Vector3d toE(const btVector3& v) { return Eigen::Vector3d(double(v.x()), double(v.y()), double(v.z())); }
 
 inline Eigen::Matrix3d toE(const btMatrix3x3& m)

@@ -17,6 +17,8 @@
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 #include "src/btEllipsoidClothColliderCore.h" // drives collide() on crafted node paths
+#include "bullet_ext/cloth_test_scene.h"
+
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -227,20 +229,7 @@ SetSpec makeSet(Rng& rng, int kind, const btVector3& offset)
 	return s;
 }
 
-/// zeta_k(p) in long double from the compound's analytic data: sum_i ((R^T (p - c))_i / a_i)^2.
-Real refZeta(const btEllipsoidLocalData& e, const btVector3& p)
-{
-	const Real d[3] = {Real(p.x()) - Real(e.m_center.x()), Real(p.y()) - Real(e.m_center.y()),
-					   Real(p.z()) - Real(e.m_center.z())};
-	Real z = 0;
-	for (int i = 0; i < 3; ++i)
-	{
-		const Real l = Real(e.m_basis[0][i]) * d[0] + Real(e.m_basis[1][i]) * d[1] + Real(e.m_basis[2][i]) * d[2];
-		const Real r = l / Real(e.m_semiAxes[i]);
-		z += r * r;
-	}
-	return z;
-}
+using bodyfit_test::refZeta; // cloth_test_scene.h
 
 /// Largest amount by which p is inside an ellipsoid beyond what btScalar can resolve: max_k (1 - zeta_k(p)) - tol_k,
 /// tol_k = 1e-6 + 16 eps |p - c_k| / a_min,k. The second term is the rounding floor of any btScalar evaluation of

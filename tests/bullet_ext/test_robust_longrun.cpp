@@ -13,6 +13,8 @@
 #include "BulletSoftBody/btSoftBodyHelpers.h"
 #include "BulletCollision/CollisionShapes/btBoxShape.h"
 
+#include "bullet_ext/cloth_test_scene.h"
+
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -25,19 +27,7 @@ namespace
 typedef long double Real;
 const double kTwoPi = 6.283185307179586;
 
-Real refZeta(const btEllipsoidLocalData& e, const btVector3& p)
-{
-	const Real d[3] = {Real(p.x()) - Real(e.m_center.x()), Real(p.y()) - Real(e.m_center.y()),
-					   Real(p.z()) - Real(e.m_center.z())};
-	Real z = 0;
-	for (int i = 0; i < 3; ++i)
-	{
-		const Real l = Real(e.m_basis[0][i]) * d[0] + Real(e.m_basis[1][i]) * d[1] + Real(e.m_basis[2][i]) * d[2];
-		const Real r = l / Real(e.m_semiAxes[i]);
-		z += r * r;
-	}
-	return z;
-}
+using bodyfit_test::refZeta; // cloth_test_scene.h
 
 bool finite3(const btVector3& v)
 {

@@ -4,17 +4,15 @@
 #include "bodyfit/fitting/ellipsoid_io.h"
 #include "bodyfit/fitting/skinned_fit.h"
 #include "support/paths.h"
+#include "support/run_program.h"
 
 #include <catch2/catch.hpp>
 
-#include <unistd.h>
 #include <nlohmann/json.hpp>
 
-#include <sys/wait.h>
 
 #include <cstdio>
 #include <algorithm>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -24,53 +22,26 @@ namespace
 
 namespace fs = std::filesystem;
 
-struct Run
-{
-	int status = -1;
-	std::string out, err;
-};
+using bodyfit_test::quoted;
+using bodyfit_test::readFile;
 
 fs::path scratch()
 {
-	// One directory per process: ctest runs the test cases of this file in parallel processes.
-	const fs::path dir = fs::temp_directory_path() / ("bodyfit_test_cli_" + std::to_string(::getpid()));
-	fs::create_directories(dir);
-	return dir;
-}
-
-std::string slurp(const fs::path& p)
-{
-	std::ifstream in(p);
-	std::ostringstream s;
-	s << in.rdbuf();
-	return s.str();
+	return bodyfit_test::scratchDir("bodyfit_test_cli");
 }
 
 /// Runs bodyfit-fit with `args` (already shell-quoted where needed) and captures exit status, stdout, stderr.
-Run run(const std::string& args)
+bodyfit_test::ProgramRun run(const std::string& args)
 {
-	const fs::path out = scratch() / "stdout.txt", err = scratch() / "stderr.txt";
-	const std::string cmd = std::string("\"") + BODYFIT_FIT_EXE + "\" " + args + " > \"" + out.string() + "\" 2> \"" +
-							err.string() + "\"";
-	const int rc = std::system(cmd.c_str());
-	Run r;
-	r.status = WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-	r.out = slurp(out);
-	r.err = slurp(err);
-	return r;
-}
-
-std::string quoted(const std::string& s)
-{
-	return "\"" + s + "\"";
+	return bodyfit_test::runProgram(BODYFIT_FIT_EXE, args);
 }
 
 /// Bad input: exit 2, nothing on stdout, exactly one stderr line "bodyfit-fit: error: ..." containing `needle`.
 void checkBadInput(const std::string& args, const std::string& needle)
 {
-	const Run r = run(args);
+	const bodyfit_test::ProgramRun r = run(args);
 	CAPTURE(args, r.err);
-	CHECK(r.status == 2);
+	CHECK(r.exitCode == 2);
 	CHECK(r.out.empty());
 	CHECK(r.err.rfind("bodyfit-fit: error: ", 0) == 0);
 	CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
@@ -81,8 +52,8 @@ void checkBadInput(const std::string& args, const std::string& needle)
 
 TEST_CASE("cli: --help prints the usage and exits 0", "[fitting][cli]")
 {
-	const Run r = run("--help");
-	CHECK(r.status == 0);
+	const bodyfit_test::ProgramRun r = run("--help");
+	CHECK(r.exitCode == 0);
 	CHECK(r.out.find("usage: bodyfit-fit MESH -o OUT.json") != std::string::npos);
 	CHECK(r.out.find("--max-ellipsoids") != std::string::npos);
 	CHECK(r.err.empty());
@@ -123,9 +94,9 @@ TEST_CASE("cli: a fit writes readable JSON and the ellipsoid mesh, creating the 
 	const std::string ply = (dir / "fit.ply").string();
 	const std::string args = quoted(bodyfit_test::assetPath("male_young.4508v.obj")) + " -o " + quoted(json) +
 							 " --max-ellipsoids 40 --export-mesh " + quoted(ply);
-	const Run r = run(args);
+	const bodyfit_test::ProgramRun r = run(args);
 	CAPTURE(r.err);
-	REQUIRE(r.status == 0);
+	REQUIRE(r.exitCode == 0);
 	CHECK(r.out.find("ellipsoids") != std::string::npos);
 	CHECK(r.out.find("air gap") != std::string::npos);
 	const bodyfit::BodyFit fit = bodyfit::readEllipsoidJson(json);
@@ -140,14 +111,14 @@ TEST_CASE("cli: a fit writes readable JSON and the ellipsoid mesh, creating the 
 	const std::string json2 = (dir / "fit2.json").string();
 	REQUIRE(run(quoted(bodyfit_test::assetPath("male_young.4508v.obj")) + " -o " + quoted(json2) +
 				" --max-ellipsoids 40")
-				.status == 0);
-	CHECK(nlohmann::json::parse(slurp(json))["ellipsoids"] == nlohmann::json::parse(slurp(json2))["ellipsoids"]);
+				.exitCode == 0);
+	CHECK(nlohmann::json::parse(readFile(json))["ellipsoids"] == nlohmann::json::parse(readFile(json2))["ellipsoids"]);
 
 	// --absolute: thresholds in metres are recorded as such.
 	const std::string json3 = (dir / "fit3.json").string();
 	REQUIRE(run(quoted(bodyfit_test::assetPath("male_young.4508v.obj")) + " -o " + quoted(json3) +
 				" --absolute --mu-torso 0.03 --mu-limbs 0.02")
-				.status == 0);
+				.exitCode == 0);
 	const bodyfit::BodyFit abs = bodyfit::readEllipsoidJson(json3);
 	CHECK_FALSE(abs.params.relativeToHeight);
 	CHECK(abs.params.muTorso == 0.03);
@@ -178,18 +149,18 @@ TEST_CASE("cli: --absolute with the relative thresholds times H gives the same f
 {
 	const std::string body = quoted(bodyfit_test::assetPath("male_young.4508v.obj"));
 	const std::string relJson = (scratch() / "units_rel.json").string();
-	const Run rel = run(body + " -o " + quoted(relJson));
-	REQUIRE(rel.status == 0);
+	const bodyfit_test::ProgramRun rel = run(body + " -o " + quoted(relJson));
+	REQUIRE(rel.exitCode == 0);
 	const bodyfit::BodyFit relFit = bodyfit::readEllipsoidJson(relJson);
 	const double h = relFit.source.height;
 	const bodyfit::BodyFitOptions defaults;
 
 	const std::string absJson = (scratch() / "units_abs.json").string();
-	const Run abs = run(body + " -o " + quoted(absJson) + " --absolute --mu-torso " + exact(defaults.muTorso * h) +
+	const bodyfit_test::ProgramRun abs = run(body + " -o " + quoted(absJson) + " --absolute --mu-torso " + exact(defaults.muTorso * h) +
 						" --mu-limbs " + exact(defaults.muLimbs * h));
 	CAPTURE(abs.err);
-	REQUIRE(abs.status == 0);
-	CHECK(nlohmann::json::parse(slurp(relJson))["ellipsoids"] == nlohmann::json::parse(slurp(absJson))["ellipsoids"]);
+	REQUIRE(abs.exitCode == 0);
+	CHECK(nlohmann::json::parse(readFile(relJson))["ellipsoids"] == nlohmann::json::parse(readFile(absJson))["ellipsoids"]);
 	// The triangle cover used the same piece size (before the fit pipeline --absolute left it at 0.003 m instead of
 	// 0.003 H: 291,440 points instead of 100,504 on this body).
 	CHECK(coverPoints(rel.out) > 0);
@@ -207,9 +178,9 @@ TEST_CASE("cli: a rigged GLB is fitted in its bind pose and the fit records the 
 {
 	const std::string glb = bodyfit_test::assetPath("animated/male_young.animated.glb");
 	const std::string json = (scratch() / "rig" / "fit.json").string();
-	const Run r = run(quoted(glb) + " -o " + quoted(json));
+	const bodyfit_test::ProgramRun r = run(quoted(glb) + " -o " + quoted(json));
 	INFO(r.err);
-	REQUIRE(r.status == 0);
+	REQUIRE(r.exitCode == 0);
 	CHECK(r.out.find("skinning  rig with") != std::string::npos);
 	const bodyfit::BodyFit fit = bodyfit::readEllipsoidJson(json);
 	REQUIRE(fit.skinning != nullptr);
@@ -219,13 +190,13 @@ TEST_CASE("cli: a rigged GLB is fitted in its bind pose and the fit records the 
 
 	// A static mesh gets no section; --skinned-mesh on it, or an unknown name, is bad input (exit 2, one line).
 	const std::string obj = bodyfit_test::assetPath("male_young.4508v.obj");
-	REQUIRE(run(quoted(obj) + " -o " + quoted(json)).status == 0);
+	REQUIRE(run(quoted(obj) + " -o " + quoted(json)).exitCode == 0);
 	CHECK(bodyfit::readEllipsoidJson(json).skinning == nullptr);
-	const Run noSkin = run(quoted(obj) + " -o " + quoted(json) + " --skinned-mesh body");
-	CHECK(noSkin.status == 2);
+	const bodyfit_test::ProgramRun noSkin = run(quoted(obj) + " -o " + quoted(json) + " --skinned-mesh body");
+	CHECK(noSkin.exitCode == 2);
 	CHECK_THAT(noSkin.err, Catch::Contains("no skinned mesh"));
-	const Run unknown = run(quoted(glb) + " -o " + quoted(json) + " --skinned-mesh cloth");
-	CHECK(unknown.status == 2);
+	const bodyfit_test::ProgramRun unknown = run(quoted(glb) + " -o " + quoted(json) + " --skinned-mesh cloth");
+	CHECK(unknown.exitCode == 2);
 	CHECK_THAT(unknown.err, Catch::Contains("no skinned mesh named 'cloth'"));
 	CHECK(std::count(unknown.err.begin(), unknown.err.end(), '\n') == 1);
 }

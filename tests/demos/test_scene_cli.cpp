@@ -1,42 +1,23 @@
 // bodyfit-drape end to end: a short run of a bundled scene writes the metrics JSON (docs/DESIGN.md sec. 6 fields), the
 // two-view PNG of the scene's size and the OBJ frames; bad input exits 2 with a one-line reason naming the problem.
+#include "support/run_program.h"
+
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
-#include <sys/wait.h>
 
 namespace fs = std::filesystem;
 
 namespace
 {
 
-struct Run
-{
-	int exitCode = -1;
-	std::string out, err;
-};
+using bodyfit_test::readFile;
 
-std::string slurp(const fs::path& p)
+bodyfit_test::ProgramRun drape(const std::string& args)
 {
-	std::ifstream in(p, std::ios::binary);
-	return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
-Run drape(const std::string& args, const fs::path& dir)
-{
-	const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-	const std::string cmd = std::string("\"") + BODYFIT_DRAPE_EXE + "\" " + args + " > \"" + out.string() + "\" 2> \"" +
-							err.string() + "\"";
-	const int status = std::system(cmd.c_str());
-	Run r;
-	r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-	r.out = slurp(out);
-	r.err = slurp(err);
-	return r;
+	return bodyfit_test::runProgram(BODYFIT_DRAPE_EXE, args);
 }
 
 fs::path freshDir(const std::string& name)
@@ -53,12 +34,13 @@ TEST_CASE("bodyfit-drape runs a bundled scene and writes metrics, picture and fr
 {
 	const fs::path dir = freshDir("bodyfit_drape_cli");
 	const std::string scene = std::string(BODYFIT_SCENE_DIR) + "/skirt_drop.json";
-	const Run r = drape("\"" + scene + "\" --steps 12 --metrics \"" + (dir / "m.json").string() + "\" --png \"" +
-							(dir / "p.png").string() + "\" --frames \"" + (dir / "frames").string() + "\"",
-						dir);
+	const bodyfit_test::ProgramRun r =
+		drape(bodyfit_test::quoted(scene) + " --steps 12 --metrics " + bodyfit_test::quoted((dir / "m.json").string()) +
+			  " --png " + bodyfit_test::quoted((dir / "p.png").string()) + " --frames " +
+			  bodyfit_test::quoted((dir / "frames").string()));
 	INFO(r.err);
 	REQUIRE(r.exitCode == 0);
-	const nlohmann::json m = nlohmann::json::parse(slurp(dir / "m.json"));
+	const nlohmann::json m = nlohmann::json::parse(readFile(dir / "m.json"));
 	for (const char* key : {"steps", "nodes", "ms_per_step", "collision_ms_per_step", "nodes_inside_body",
 							"max_nodes_inside_body", "mean_contact_gap_m", "nan_nodes"})
 		CHECK(m.contains(key));
@@ -67,7 +49,7 @@ TEST_CASE("bodyfit-drape runs a bundled scene and writes metrics, picture and fr
 	CHECK(m["nan_nodes"] == 0);
 	CHECK(m["collider"] == "ellipsoids");
 	// PNG of the scene's render size (skirt_drop uses the default 1200 x 900).
-	const std::string png = slurp(dir / "p.png");
+	const std::string png = readFile(dir / "p.png");
 	REQUIRE(png.size() > 24);
 	auto be32 = [&](int at) {
 		return (unsigned(std::uint8_t(png[at])) << 24) | (unsigned(std::uint8_t(png[at + 1])) << 16) |
@@ -79,7 +61,7 @@ TEST_CASE("bodyfit-drape runs a bundled scene and writes metrics, picture and fr
 	CHECK(fs::exists(dir / "frames" / "frame_00000.obj"));
 	CHECK(fs::exists(dir / "frames" / "frame_00010.obj"));
 	CHECK(fs::exists(dir / "frames" / "frame_00012.obj"));
-	const nlohmann::json frames = nlohmann::json::parse(slurp(dir / "frames" / "frames.json"));
+	const nlohmann::json frames = nlohmann::json::parse(readFile(dir / "frames" / "frames.json"));
 	CHECK(frames["frames"].size() == 3);
 	CHECK(r.err.find("step 12/12") != std::string::npos); // progress line on stderr
 	fs::remove_all(dir);
@@ -109,13 +91,13 @@ TEST_CASE("bodyfit-drape: bad input exits 2 with one line naming the problem", "
 	};
 	for (const Case& c : cases)
 	{
-		const Run r = drape(c.args, dir);
+		const bodyfit_test::ProgramRun r = drape(c.args);
 		INFO(c.args << " -> " << r.err);
 		CHECK(r.exitCode == 2);
 		CHECK(r.err.find(c.expected) != std::string::npos);
 		CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
 	}
-	const Run help = drape("--help", dir);
+	const bodyfit_test::ProgramRun help = drape("--help");
 	CHECK(help.exitCode == 0);
 	CHECK(help.out.find("usage: bodyfit-drape SCENE.json") == 0);
 	fs::remove_all(dir);

@@ -193,3 +193,36 @@ TEST_CASE("geodesics: other components stay unreachable", "[fitting][geodesics]"
 	for (double x : none)
 		REQUIRE(std::isinf(x));
 }
+
+TEST_CASE("geodesics: the graph is the same for any thread count", "[fitting][geodesics][threads]")
+{
+	// The graph is built on GeodesicOptions::threads (vertex ranges, merged in vertex order): 1, 2 and 3 threads
+	// give the same neighbours in the same order (so the same distances and predecessors, bit for bit). The shuffled
+	// sphere has its edges in no particular vertex order, so the ranges really split the work unevenly.
+	std::vector<int> newIndex;
+	const TriMesh mesh = bodyfit_test::shuffled(uvSphere(1.0, 48, 24), 7, &newIndex);
+	GeodesicOptions one;
+	one.threads = 1;
+	GeodesicSolver reference(mesh, one);
+	std::vector<double> d1;
+	std::vector<int> p1;
+	reference.compute(0, d1, &p1);
+	for (const int threads : {2, 3})
+	{
+		GeodesicOptions o;
+		o.threads = threads;
+		GeodesicSolver solver(mesh, o);
+		REQUIRE(solver.edgeCount() == reference.edgeCount());
+		for (int v = 0; v < mesh.vertexCount(); ++v)
+		{
+			const auto [a, b] = solver.neighbors(v);
+			const auto [c, d] = reference.neighbors(v);
+			REQUIRE(std::vector<int>(a, b) == std::vector<int>(c, d));
+		}
+		std::vector<double> dn;
+		std::vector<int> pn;
+		solver.compute(0, dn, &pn);
+		CHECK(dn == d1);
+		CHECK(pn == p1);
+	}
+}

@@ -1,13 +1,21 @@
 // Rigged input (rig.h): a two-bone bent cylinder written as glTF in the test, whose skinned vertices are known in
 // closed form; the bundled animated bodies; every bad input with its one-line error.
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/rig.h"
 #include "support/gltf_rig.h"
 #include "support/paths.h"
 
+#include <assimp/Exporter.hpp>
+#include <assimp/Importer.hpp>
+#include <assimp/scene.h>
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <memory>
 #include <limits>
 
 using namespace bodyfit;
@@ -315,4 +323,281 @@ TEST_CASE("The bundled animated bodies load: 13,380 vertices, 4 influences, walk
 			CHECK((skinned - rig.bindMesh.V).rowwise().norm().maxCoeff() > 0.05); // and moves
 		}
 	}
+}
+
+namespace
+{
+
+/// The bent cylinder written as glTF (+ .bin), its JSON changed by `edit`, written again under `name`; the
+/// MeshLoadError message of loadRig on it ("no error" when it loads).
+std::string editedGltfError(const std::string& name, const std::function<void(nlohmann::json&)>& edit)
+{
+	const std::string base = bodyfit_test::writeGltfRig(bentCylinder(), "refs_base");
+	nlohmann::json doc = nlohmann::json::parse(std::ifstream(base));
+	edit(doc);
+	const std::string path = (std::filesystem::path(base).parent_path() / (name + ".gltf")).string();
+	std::ofstream(path) << doc.dump();
+	try
+	{
+		loadRig(path);
+	}
+	catch (const MeshLoadError& e)
+	{
+		return e.what();
+	}
+	return "no error";
+}
+
+} // namespace
+
+TEST_CASE("glTF references are checked before assimp reads them: one-line errors", "[rig][robust][gltf]")
+{
+	// The fuzzed GLB of issue 15 (tests/data/robust_fuzz_glb_skin_no_ibm.glb): its skin lost its inverse bind
+	// matrices and assimp 5.2 dereferenced the missing accessor (a segfault). Refused by both loaders now.
+	const std::string fuzzed = bodyfit_test::dataPath("robust_fuzz_glb_skin_no_ibm.glb");
+	const std::string expected = "robust_fuzz_glb_skin_no_ibm.glb: glTF skins[0] has no inverseBindMatrices";
+	CHECK_THROWS_WITH(loadRig(fuzzed), Catch::Contains(expected));
+	CHECK_THROWS_WITH(loadTriMesh(fuzzed), Catch::Contains(expected));
+	// The unedited cylinder passes every check (the edits below are what fails).
+	CHECK(editedGltfError("refs_ok", [](nlohmann::json&) {}) == "no error");
+	// Accessor 0 (POSITION) is 110 VEC3 floats in buffer view 0 of 1320 bytes.
+	const std::vector<std::pair<std::function<void(nlohmann::json&)>, std::string>> cases = {
+		{[](nlohmann::json& d) { d["accessors"][0]["bufferView"] = 99; }, "glTF accessors[0].bufferView is 99, not one of the"},
+		{[](nlohmann::json& d) { d["accessors"][0]["count"] = 111; },
+		 "glTF accessors[0]: 111 elements of 12 bytes from byte 0 run past the end of buffer view 0 (1320 bytes)"},
+		{[](nlohmann::json& d) { d["accessors"][0]["byteOffset"] = 4; }, "110 elements of 12 bytes from byte 4 run past"},
+		{[](nlohmann::json& d) { d["accessors"][0]["count"] = 0; }, "glTF accessors[0].count is 0"},
+		{[](nlohmann::json& d) { d["accessors"][0]["componentType"] = 5127; },
+		 "glTF accessors[0] has component type 5127 and type 'VEC3' (not a glTF 2.0 accessor)"},
+		{[](nlohmann::json& d) { d["accessors"][0]["type"] = "VEC5"; }, "type 'VEC5' (not a glTF 2.0 accessor)"},
+		{[](nlohmann::json& d) { d["bufferViews"][0]["buffer"] = 3; }, "glTF bufferViews[0].buffer is 3, not one of the 1 buffers"},
+		{[](nlohmann::json& d) { d["bufferViews"][0]["byteOffset"] = 1u << 30; }, "glTF bufferViews[0] (bytes 1073741824 + 1320) runs past the end of buffer 0"},
+		{[](nlohmann::json& d) { d["bufferViews"][0]["byteStride"] = 2; }, "glTF bufferViews[0].byteStride is 2 (glTF allows 4-252)"},
+		{[](nlohmann::json& d) { d["meshes"][0]["primitives"][0]["indices"] = 50; }, "glTF meshes[0].primitives[0].indices is 50"},
+		{[](nlohmann::json& d) { d["meshes"][0]["primitives"][0]["attributes"]["WEIGHTS_0"] = 50; },
+		 "glTF meshes[0].primitives[0].attributes.WEIGHTS_0 is 50"},
+		{[](nlohmann::json& d) { d["nodes"][0]["skin"] = 1; }, "glTF nodes[0].skin is 1, not one of the 1 skins"},
+		{[](nlohmann::json& d) { d["skins"][0]["joints"][1] = 42; }, "glTF skins[0].joints[1] is 42, not one of the 3 nodes"},
+		{[](nlohmann::json& d) { d["skins"][0]["joints"] = nlohmann::json::array(); }, "glTF skins[0] has no joints"},
+		{[](nlohmann::json& d) { d["skins"][0].erase("inverseBindMatrices"); }, "glTF skins[0] has no inverseBindMatrices"},
+		{[](nlohmann::json& d) { d["skins"][0]["inverseBindMatrices"] = 77; }, "glTF skins[0].inverseBindMatrices is 77"},
+		{[](nlohmann::json& d) { d["skins"][0]["inverseBindMatrices"] = 0; }, "glTF skins[0].inverseBindMatrices (accessor 0) is not a float MAT4"},
+		{[](nlohmann::json& d) {
+			 const int ibm = d["skins"][0]["inverseBindMatrices"];
+			 d["accessors"][std::size_t(ibm)]["count"] = 1;
+		 },
+		 "has 1 elements, fewer than 2"},
+		{[](nlohmann::json& d) { d["animations"][0]["samplers"][0]["input"] = 99; }, "glTF animations[0].samplers[0].input is 99"},
+		{[](nlohmann::json& d) { d["animations"][0]["samplers"][0].erase("output"); }, "glTF animations[0].samplers[0] has no output"},
+		{[](nlohmann::json& d) { d["animations"][0]["samplers"][0]["input"] = 0; }, "samplers[0].input (accessor 0) is not a float SCALAR"},
+		{[](nlohmann::json& d) { d["animations"][0]["channels"][0]["sampler"] = 5; }, "glTF animations[0].channels[0].sampler is 5"},
+		{[](nlohmann::json& d) { d["animations"][0]["channels"][0]["target"]["node"] = -1; }, "channels[0].target.node is -1"},
+		{[](nlohmann::json& d) { d["scenes"][0]["nodes"][0] = 9; }, "glTF scenes[0].nodes[0] is 9"},
+	};
+	for (std::size_t i = 0; i < cases.size(); ++i)
+	{
+		INFO("case " << i << ": " << cases[i].second);
+		const std::string what = editedGltfError("refs_bad_" + std::to_string(i), cases[i].first);
+		CHECK_THAT(what, Catch::Contains(cases[i].second));
+		CHECK(what.find('\n') == std::string::npos); // one line
+	}
+}
+
+namespace
+{
+
+/// Key times and durations of every clip in seconds (1 tick per second). assimp 5.2's FBX exporter writes a key at
+/// tick t as t seconds whatever the clip's ticks per second (glTF comes in at 1000 per second: a key at 0.5 s
+/// became 500 s, past the clip's end, and the importer dropped it), so the clips are given in seconds first.
+void clipsInSeconds(aiScene& scene)
+{
+	for (unsigned a = 0; a < scene.mNumAnimations; ++a)
+	{
+		aiAnimation& anim = *scene.mAnimations[a];
+		const double perTick = anim.mTicksPerSecond > 0.0 ? 1.0 / anim.mTicksPerSecond : 1.0 / 25.0;
+		anim.mDuration *= perTick;
+		anim.mTicksPerSecond = 1.0;
+		for (unsigned c = 0; c < anim.mNumChannels; ++c)
+		{
+			aiNodeAnim& ch = *anim.mChannels[c];
+			for (unsigned k = 0; k < ch.mNumPositionKeys; ++k)
+				ch.mPositionKeys[k].mTime *= perTick;
+			for (unsigned k = 0; k < ch.mNumRotationKeys; ++k)
+				ch.mRotationKeys[k].mTime *= perTick;
+			for (unsigned k = 0; k < ch.mNumScalingKeys; ++k)
+				ch.mScalingKeys[k].mTime *= perTick;
+		}
+	}
+}
+
+/// `in` read by assimp without post-processing (what the file holds), its clips in seconds (clipsInSeconds), and
+/// written by assimp's exporter in `format` to `out`. Returns "" on success, else the importer's or exporter's
+/// message.
+std::string exportWithAssimp(const std::string& in, const std::string& format, const std::string& out)
+{
+	Assimp::Importer importer;
+	if (importer.ReadFile(in, 0) == nullptr)
+		return std::string("import: ") + importer.GetErrorString();
+	aiScene* scene = importer.GetOrphanedScene(); // ours to edit (and to delete)
+	const std::unique_ptr<aiScene> owned(scene);
+	clipsInSeconds(*scene);
+	Assimp::Exporter exporter;
+	if (exporter.Export(scene, format, out) != AI_SUCCESS)
+		return std::string("export: ") + exporter.GetErrorString();
+	return "";
+}
+
+/// For every vertex of `a`, the vertex of `b` at the same bind position (nearest; the FBX exporter may reorder
+/// vertices), and the largest distance of such a pair.
+std::vector<int> matchVertices(const TriMesh& a, const TriMesh& b, double* worst)
+{
+	std::vector<int> match(std::size_t(a.vertexCount()), -1);
+	*worst = 0.0;
+	for (int v = 0; v < a.vertexCount(); ++v)
+	{
+		double best = std::numeric_limits<double>::infinity();
+		for (int w = 0; w < b.vertexCount(); ++w)
+		{
+			const double d = (a.V.row(v) - b.V.row(w)).norm();
+			if (d < best)
+			{
+				best = d;
+				match[std::size_t(v)] = w;
+			}
+		}
+		*worst = std::max(*worst, best);
+	}
+	return match;
+}
+
+/// Weight of the bone named `bone` on vertex v (0 when it has none).
+double weightOn(const Rig& rig, int v, const std::string& bone)
+{
+	for (int k = rig.weightStart[std::size_t(v)]; k < rig.weightStart[std::size_t(v) + 1]; ++k)
+		if (rig.bones[std::size_t(rig.weightBone[std::size_t(k)])].name == bone)
+			return rig.weight[std::size_t(k)];
+	return 0.0;
+}
+
+} // namespace
+
+namespace
+{
+
+/// The bent cylinder bound in its rest pose (the upper bone's rest rotation removed, so rest pose = bind pose),
+/// with every length multiplied by `unit` (100: the same rig in centimetres).
+GltfRig cylinderBoundAtRest(float unit)
+{
+	GltfRig rig = bentCylinder();
+	rig.joints[1].rotation = Eigen::Quaternionf::Identity();
+	for (Eigen::Vector3f& p : rig.positions)
+		p *= unit;
+	for (bodyfit_test::GltfJoint& j : rig.joints)
+		j.translation *= unit;
+	for (Eigen::Matrix4f& m : rig.inverseBind)
+		m.block<3, 1>(0, 3) *= unit;
+	for (bodyfit_test::GltfChannel& ch : rig.clips[0].channels)
+		if (ch.path == "translation")
+			for (float& v : ch.values)
+				v *= unit;
+	return rig;
+}
+
+/// `gltf` written as glTF, exported by assimp to ASCII FBX ("fbxa"), and the path of the FBX file.
+std::string exportedFbx(const GltfRig& gltf, const std::string& name)
+{
+	const std::string gltfPath = bodyfit_test::writeGltfRig(gltf, name);
+	const std::string fbxPath = (std::filesystem::path(gltfPath).parent_path() / (name + ".fbx")).string();
+	REQUIRE(exportWithAssimp(gltfPath, "fbxa", fbxPath) == "");
+	return fbxPath;
+}
+
+/// The largest distance between the skinned vertices of `a` and `b` (vertex v of a against match[v] of b) over
+/// the clip, sampled every 0.125 s.
+double maxSkinnedDeviation(const Rig& a, const Rig& b, const std::vector<int>& match)
+{
+	Eigen::MatrixX3d va, vb;
+	double worst = 0.0;
+	for (int k = 0; k <= 8; ++k)
+	{
+		const double t = k * 0.125 * a.clips[0].duration;
+		skinVertices(a, skinningMatrices(a, poseBones(a, a.clips[0], t)), va);
+		skinVertices(b, skinningMatrices(b, poseBones(b, b.clips[0], t)), vb);
+		for (int v = 0; v < va.rows(); ++v)
+			worst = std::max(worst, (va.row(v) - vb.row(match[std::size_t(v)])).norm());
+	}
+	return worst;
+}
+
+} // namespace
+
+// FBX through assimp: assimp 5.2 exports FBX ("fbx" binary, "fbxa" ASCII), but it cannot read its own binary
+// export back ("FBX-Tokenize ... block offset is out of range"), so the tests go through ASCII FBX, which the same
+// FBX importer reads. Tolerances: 1e-5 m (10 um) on a 2 m rig is far above float rounding of the glTF input
+// (~2e-7 m) and of the exporter's Euler-angle rotation curves (float degrees: ~1e-6 m at a 1 m lever), and far
+// below any error that matters (a wrong unit is a factor 100, a wrong bind pose tens of centimetres).
+TEST_CASE("FBX: a rig exported to FBX by assimp loads as the same rig (bones, weights, clip, skinned vertices)", "[rig][fbx]")
+{
+	const Rig gltf = loadRig(bodyfit_test::writeGltfRig(cylinderBoundAtRest(1.0f), "fbx_rest"));
+	const std::string path = exportedFbx(cylinderBoundAtRest(1.0f), "fbx_rest");
+	CHECK(hasSkinnedMesh(path)); // what bodyfit-fit asks to choose the rigged path
+	const Rig fbx = loadRig(path);
+	REQUIRE(fbx.bindMesh.vertexCount() == gltf.bindMesh.vertexCount());
+	double worst = 0.0;
+	const std::vector<int> match = matchVertices(gltf.bindMesh, fbx.bindMesh, &worst);
+	CHECK(worst < 1e-5);
+	// The same deforming bones, by name, with the same parent chain (lower -> upper).
+	std::vector<std::string> deforming;
+	for (const Bone& b : fbx.bones)
+		if (b.deforms)
+			deforming.push_back(b.name);
+	CHECK(deforming == std::vector<std::string>{"lower", "upper"});
+	for (int v = 0; v < gltf.bindMesh.vertexCount(); ++v)
+		for (const char* bone : {"lower", "upper"})
+			CHECK(weightOn(fbx, match[std::size_t(v)], bone) == Approx(weightOn(gltf, v, bone)).margin(1e-6));
+	// FBX keeps time in its own ticks (46,186,158,000 per second); the loader's clip is 1 s like the glTF's.
+	REQUIRE(fbx.clips.size() == 1);
+	CHECK(fbx.clips[0].duration == Approx(1.0).margin(1e-6));
+	CHECK(maxSkinnedDeviation(gltf, fbx, match) < 1e-5);
+}
+
+TEST_CASE("FBX: a rig in centimetres loads in metres with scale 0.01", "[rig][fbx]")
+{
+	// An FBX from a DCC tool is usually in centimetres (assimp's exporter writes UnitScaleFactor 1, i.e. cm, and
+	// keeps the coordinates as they are). The same rig with every length x 100, loaded with scale 0.01 (bodyfit-fit
+	// --scale 0.01), must be the metre rig: the scale applies at the root, to the mesh, the inverse bind matrices and
+	// the animated translations alike.
+	const Rig metres = loadRig(bodyfit_test::writeGltfRig(cylinderBoundAtRest(1.0f), "fbx_m"));
+	RigLoadOptions cm;
+	cm.mesh.scale = 0.01;
+	const Rig fbx = loadRig(exportedFbx(cylinderBoundAtRest(100.0f), "fbx_cm"), cm);
+	REQUIRE(fbx.bindMesh.vertexCount() == metres.bindMesh.vertexCount());
+	double worst = 0.0;
+	const std::vector<int> match = matchVertices(metres.bindMesh, fbx.bindMesh, &worst);
+	CHECK(worst < 1e-5);
+	CHECK(maxSkinnedDeviation(metres, fbx, match) < 1e-5);
+	// Without the scale it is a 200 m cylinder (what the fit's range check then refuses with the --scale hint).
+	const Rig raw = loadRig(exportedFbx(cylinderBoundAtRest(100.0f), "fbx_cm_raw"));
+	CHECK(raw.bindMesh.V.col(1).maxCoeff() == Approx(200.0).margin(1e-3));
+}
+
+TEST_CASE("FBX: assimp's exporter writes the rest pose as the bind pose", "[rig][fbx]")
+{
+	// What the export cannot carry: the bent cylinder's skin is bound straight while its upper bone rests at 30
+	// degrees. assimp's FBX exporter writes each cluster's bind transform from the node hierarchy (the rest pose),
+	// not from the glTF inverse bind matrices, so the FBX rig is bound at rest: its upper inverse bind matrix is the
+	// inverse of the upper bone's rest world transform, and its skin no longer follows the glTF's.
+	const Rig gltf = loadRig(bodyfit_test::writeGltfRig(bentCylinder(), "fbx_bent"));
+	const Rig fbx = loadRig(exportedFbx(bentCylinder(), "fbx_bent"));
+	int upper = -1;
+	for (int b = 0; b < fbx.boneCount(); ++b)
+		upper = fbx.bones[std::size_t(b)].name == "upper" ? b : upper;
+	REQUIRE(upper >= 0);
+	const Eigen::Affine3d restWorld = fbx.bones[std::size_t(fbx.bones[std::size_t(upper)].parent)].restLocal *
+									  fbx.bones[std::size_t(upper)].restLocal;
+	CHECK((fbx.bones[std::size_t(upper)].inverseBind.matrix() - restWorld.inverse().matrix()).norm() < 1e-5);
+	double worst = 0.0;
+	const std::vector<int> match = matchVertices(gltf.bindMesh, fbx.bindMesh, &worst);
+	CHECK(worst < 1e-5); // the bind mesh itself is kept
+	CHECK(maxSkinnedDeviation(gltf, fbx, match) > 0.1); // the 30 degrees bind difference: tens of centimetres
 }

@@ -27,10 +27,12 @@
 /// corners), which then also encloses those corners and is refitted, until every piece lies inside one ellipsoid.
 /// An ellipsoid is convex, so the whole skin then lies inside the union, exactly (not only at samples). E_j stays the
 /// error over a cluster's own vertices. Measured on female_young (13,380 vertices, 85 ellipsoids, `bodyfit-fit`):
-/// ~73k extra points, 3 rounds, ~30 ms; mean E_j 14.1 -> 15.5 mm (whole triangles as pieces: 15.8 mm). The
-/// thresholds bind the refinement before the cover.
+/// ~73k extra points, 3 rounds; mean E_j 14.1 -> 15.5 mm (whole triangles as pieces: 15.8 mm). The thresholds bind
+/// the refinement before the cover. The piece checks are in triangle_cover.h (about 18 ms of CPU time with the
+/// refits, `bodyfit-bench skinning --part fit --threads 1`).
 ///
-/// Deterministic bit for bit: no randomness, ordered containers only, fixed tie rules.
+/// Deterministic bit for bit: no randomness, ordered containers only, fixed tie rules; the same for any thread count
+/// (BodyFitOptions::threads: independent cluster fits and the cover checks run in parallel, merged in a fixed order).
 
 #include "bodyfit/fitting/fit_error.h"
 #include "bodyfit/fitting/mvee.h"
@@ -94,6 +96,9 @@ struct BodyFitOptions
 	double coverSpacing = 0.003;
 	/// Compute the true (Eberly) distance statistics of the final ellipsoids (costs ~1 closest-point query/vertex).
 	bool trueDistance = true;
+	/// Threads of the fit (0 = every hardware thread). The result is the same bit for bit for any count: the work
+	/// is split into independent parts whose results are merged in a fixed order (parallel.h).
+	int threads = 0;
 };
 
 /// A length-valued fit parameter: a fraction of the body height H, or metres.
@@ -211,7 +216,8 @@ struct BodyFit
 };
 
 /// Fits ellipsoids to `mesh` given one region label per vertex (Region::Whole everywhere = the generic path).
-/// Records the "fitting" timing plus its parts ("fitting.kmeans", "fitting.mvee", "fitting.error") and, when
+/// Records the "fitting" timing plus its parts ("fitting.kmeans", "fitting.mvee", "fitting.error": summed over the
+/// threads, so with several threads they can add up to more than "fitting") and, when
 /// options.trueDistance is set, "report" (the closest-point queries).
 /// \throws InvalidInputError when labels.size() != vertex count, the mesh is unusable or options are invalid.
 BodyFit fitBody(const TriMesh& mesh, const std::vector<Region>& labels, const BodyFitOptions& options = {});

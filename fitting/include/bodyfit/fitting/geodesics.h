@@ -21,6 +21,8 @@ namespace bodyfit
 struct GeodesicOptions
 {
 	bool faceDiagonals = true; ///< add the unfolded face-diagonal edges described above
+	/// Threads that build the graph (0 = every hardware thread); the graph is the same for any count.
+	int threads = 0;
 };
 
 /// The edge graph of a mesh with reusable Dijkstra buffers (an indexed 4-ary heap). Build once, query many times; not thread-safe
