@@ -97,6 +97,21 @@ BodyReference::BodyReference(TriMesh mesh, std::vector<Ellipsoid> ellipsoids)
 {
 }
 
+void BodyReference::setShape(const Eigen::MatrixX3d& vertices, std::vector<Ellipsoid> ellipsoids)
+{
+	if (vertices.rows() != mesh_.V.rows())
+		throw InvalidInputError("BodyReference::setShape: " + std::to_string(vertices.rows()) +
+								" vertices given, the body mesh has " + std::to_string(mesh_.V.rows()));
+	TriMesh moved = mesh_;
+	moved.V = vertices;
+	MeshInsideTest inside(moved); // validates the coordinates before anything is replaced
+	MeshDistanceGrid distance(moved);
+	ellipsoids_ = checkedEllipsoids(ellipsoids);
+	mesh_ = std::move(moved);
+	inside_ = std::move(inside);
+	distance_ = std::move(distance);
+}
+
 void BodyReference::setPose(const btTransform& bodyToWorld)
 {
 	pose_ = bodyToWorld;

@@ -49,6 +49,12 @@ public:
 	void setPose(const btTransform& bodyToWorld);
 	const btTransform& pose() const { return pose_; }
 
+	/// The body deformed (a skinned body at another instant): new positions for the mesh's vertices (same rows,
+	/// same faces) and the ellipsoids of that instant; rebuilds the inside test and the distance grid (O(faces), a
+	/// few ms for a 27k-triangle body), so call it when the body has changed, not per query.
+	/// \throws InvalidInputError for another vertex count, non-finite coordinates or an invalid ellipsoid.
+	void setShape(const Eigen::MatrixX3d& vertices, std::vector<Ellipsoid> ellipsoids);
+
 	const TriMesh& mesh() const { return mesh_; }
 	const std::vector<Ellipsoid>& ellipsoids() const { return ellipsoids_; }
 
