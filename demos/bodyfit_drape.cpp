@@ -6,6 +6,7 @@
 #ifdef BODYFIT_HAVE_RENDER
 #include "render/offscreen_renderer.h"
 #endif
+#include "bodyfit/drape/gltf_animation.h"
 #include "bodyfit/drape/scene.h"
 #include "bodyfit/drape/simulation.h"
 #include "bodyfit/drape/stability.h"
@@ -22,6 +23,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -38,8 +40,10 @@ const char* kUsage =
 	"  --collider KIND      ellipsoids | mesh-bvh | convex-hull-compound | ellipsoids-sdf | none\n"
 	"                       (overrides collider.kind)\n"
 	"  --steps N            number of steps (default: the scene's solver.steps)\n"
-	"  --frames DIR         write the cloth as DIR/frame_NNNNN.obj every output.frame_every steps,\n"
-	"                       plus DIR/frames.json (step, time, body pose per frame)\n"
+	"  --frames DIR         write the cloth as DIR/frame_NNNNN.obj every output.frame_every steps (and\n"
+	"                       an animated body's skinned mesh as DIR/body_NNNNN.obj), DIR/frames.json\n"
+	"                       (step, time, body pose per frame) and DIR/animation.glb: body + cloth of\n"
+	"                       every frame as one glTF 2.0 animation that any glTF viewer plays\n"
 	"  --metrics OUT.json   write the metrics (steps, nodes, ms_per_step, collision_ms_per_step,\n"
 	"                       nodes_inside_body, max_nodes_inside_body, mean_contact_gap_m, nan_nodes, ...)\n"
 	"  --png OUT.png        picture of the final state: front and side views, body (or ellipsoids) + cloth\n"
@@ -153,16 +157,32 @@ bodyfit::render::DrawMesh toDraw(const bodyfit::TriMesh& m, const Eigen::Vector3
 }
 #endif
 
-void writeFrame(const std::string& dir, const bodyfit::drape::DrapeSimulation& sim, nlohmann::json& index)
+/// The parts of DIR/animation.glb: the body (skinned when animated, posed otherwise) and the cloth.
+bodyfit::drape::GltfAnimationRecorder gltfRecorder(const bodyfit::drape::DrapeSimulation& sim)
 {
-	char name[64];
+	bodyfit::drape::GltfPart body{"body", Eigen::Vector3f(0.86f, 0.72f, 0.62f), false, sim.body().mesh.F};
+	bodyfit::drape::GltfPart cloth{"cloth", Eigen::Vector3f(0.22f, 0.42f, 0.78f), true, sim.garment().mesh.F};
+	return bodyfit::drape::GltfAnimationRecorder({body, cloth});
+}
+
+void writeFrame(const std::string& dir, const bodyfit::drape::DrapeSimulation& sim, nlohmann::json& index,
+				bodyfit::drape::GltfAnimationRecorder& gltf)
+{
+	char name[64], bodyName[64];
 	std::snprintf(name, sizeof(name), "frame_%05d.obj", sim.stepsDone());
-	bodyfit::saveTriMesh((std::filesystem::path(dir) / name).string(), sim.clothMesh());
+	std::snprintf(bodyName, sizeof(bodyName), "body_%05d.obj", sim.stepsDone());
+	const bodyfit::TriMesh cloth = sim.clothMesh(), body = sim.bodyMeshWorld();
+	bodyfit::saveTriMesh((std::filesystem::path(dir) / name).string(), cloth);
+	if (sim.skinnedDriver())
+		bodyfit::saveTriMesh((std::filesystem::path(dir) / bodyName).string(), body);
+	gltf.addFrame(sim.time(), {&body.V, &cloth.V});
 	const Eigen::Isometry3d pose = sim.bodyPose();
 	nlohmann::json m = nlohmann::json::array();
 	for (int r = 0; r < 4; ++r)
 		m.push_back({pose.matrix()(r, 0), pose.matrix()(r, 1), pose.matrix()(r, 2), pose.matrix()(r, 3)});
 	index["frames"].push_back({{"step", sim.stepsDone()}, {"time_s", sim.time()}, {"file", name}, {"body_pose", m}});
+	if (sim.skinnedDriver())
+		index["frames"].back()["body_file"] = bodyName;
 }
 
 } // namespace
@@ -220,6 +240,7 @@ int main(int argc, char** argv)
 
 	const int steps = args.steps >= 0 ? args.steps : scene.solver.steps;
 	nlohmann::json frameIndex;
+	std::optional<GltfAnimationRecorder> gltf;
 	try
 	{
 		// Output directories are created as needed (e.g. --png out/skirt.png on a fresh checkout).
@@ -231,7 +252,8 @@ int main(int argc, char** argv)
 			std::filesystem::create_directories(args.frames);
 			frameIndex["scene"] = scene.path;
 			frameIndex["frames"] = nlohmann::json::array();
-			writeFrame(args.frames, *sim, frameIndex);
+			gltf.emplace(gltfRecorder(*sim));
+			writeFrame(args.frames, *sim, frameIndex, *gltf);
 		}
 		std::cerr << "bodyfit-drape: " << scene.name << ", " << sim->nodeCount() << " cloth nodes, "
 				  << sim->colliderDescription() << "\n";
@@ -254,7 +276,7 @@ int main(int argc, char** argv)
 			if (!blowUp.empty()) // a run must not end with exit 0 and plausible metrics after NaN or a launch
 				throw BlownUp("the simulation blew up at step " + std::to_string(k) + ": " + blowUp);
 			if (!args.frames.empty() && (k % scene.frameEvery == 0 || k == steps))
-				writeFrame(args.frames, *sim, frameIndex);
+				writeFrame(args.frames, *sim, frameIndex, *gltf);
 		};
 		nlohmann::json metrics = runAndMeasure(*sim, steps, progress, afterStep);
 
@@ -292,7 +314,11 @@ int main(int argc, char** argv)
 			out << frameIndex.dump(1) << "\n";
 			if (!out)
 				throw std::runtime_error(args.frames + "/frames.json: write failed");
-			std::cout << "frames     " << frameIndex["frames"].size() << " OBJ files in " << args.frames << "\n";
+			const std::string glb = (std::filesystem::path(args.frames) / "animation.glb").string();
+			gltf->writeGlb(glb);
+			std::cout << "frames     " << frameIndex["frames"].size() << " frames in " << args.frames
+					  << (sim->skinnedDriver() ? " (cloth and body OBJ)" : " (cloth OBJ)") << ", all in " << glb
+					  << "\n";
 		}
 #ifdef BODYFIT_HAVE_RENDER
 		if (!args.png.empty())
