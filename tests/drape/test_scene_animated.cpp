@@ -334,3 +334,20 @@ TEST_CASE("a fast clip: the walk at 3x speed keeps 0 nodes inside the skinned bo
 	CHECK(r.nan == 0);
 	CHECK(r.maxEllipsoidDepth < 1e-6);
 }
+
+TEST_CASE("another body: male_young's skirt on its own rig, the walk at 2x from mid-clip, looping",
+		  "[animation][scene][runs]")
+{
+	Scene scene = loadScene(kWalkSkirt);
+	scene.body.animation->file = bodyfit_test::assetPath("animated/male_young.animated.glb");
+	scene.body.mesh = scene.body.animation->file;
+	scene.garment.mesh = bodyfit_test::assetPath("male_young.skirt.obj");
+	scene.body.animation->speed = 2.0;
+	scene.body.animation->startS = 1.0;
+	scene.body.animation->loop = true;
+	const AnimatedRun r = runAnimated(scene, 80); // 2/3 s simulated: clip 1.0 -> 2.33 s
+	CHECK(r.lastClipTime == Approx(1.0 + 2.0 * 80.0 / 120.0).margin(1e-9));
+	CHECK(r.maxInside == 0);
+	CHECK(r.nan == 0);
+	CHECK(r.maxEllipsoidDepth < 1e-6);
+}
