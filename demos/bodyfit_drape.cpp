@@ -185,6 +185,95 @@ void writeFrame(const std::string& dir, const bodyfit::drape::DrapeSimulation& s
 		index["frames"].back()["body_file"] = bodyName;
 }
 
+/// The run's summary on stdout: scene, collider, cloth, steps, cost, quality, contacts (and an animated body's clip).
+void printSummary(const bodyfit::drape::Scene& scene, const bodyfit::drape::DrapeSimulation& sim,
+				  const nlohmann::json& metrics, int steps)
+{
+	using bodyfit::drape::toString;
+	std::cout << "scene      " << scene.name << " (" << scene.path << ")\n"
+			  << "collider   " << sim.colliderDescription() << "\n"
+			  << "cloth      " << toString(scene.garment.type) << ", " << sim.nodeCount() << " nodes, effects:";
+	for (const std::string& e : scene.effects.listed())
+		std::cout << " " << e;
+	std::cout << "\n";
+	std::printf("steps      %d x %.5f s (%d substeps), %.3f s simulated\n", steps, scene.solver.dt,
+				scene.solver.substeps, sim.time());
+	std::printf("cost       %.3f ms/step (median %.3f), collision %.3f ms/step, %.0f ns/node/step\n",
+				metrics["ms_per_step"].get<double>(), metrics["ms_per_step_median"].get<double>(),
+				metrics["collision_ms_per_step"].get<double>(), metrics["ns_per_node_step"].get<double>());
+	std::cout << "quality    nodes inside body: end " << metrics["nodes_inside_body"] << ", max "
+			  << metrics["max_nodes_inside_body"] << " (sampled every " << scene.sampleEvery
+			  << " steps); inside ellipsoids " << metrics["nodes_inside_ellipsoids"] << "; NaN nodes "
+			  << metrics["nan_nodes"] << "\n"
+			  << "contact    " << metrics["contact_nodes"] << " nodes, mean gap to skin "
+			  << metrics["mean_contact_gap_m"] << " m\n";
+	if (metrics.contains("animation"))
+		std::printf("body       clip '%s' x %.3g (loop %s), posed every substep: %.3f ms/step pose + skin + ellipsoids, "
+					"%.3f ms/step shape write (medians)\n",
+					metrics["animation"]["clip"].get<std::string>().c_str(), metrics["animation"]["speed"].get<double>(),
+					metrics["animation"]["loop"].get<bool>() ? "on" : "off",
+					metrics["body_skin_ms_per_step_median"].get<double>(),
+					metrics["body_write_ms_per_step_median"].get<double>());
+}
+
+/// --metrics (the JSON) and --frames (frames.json and animation.glb; the OBJ files were written while stepping).
+void writeOutputs(const Args& args, const bodyfit::drape::DrapeSimulation& sim, const nlohmann::json& metrics,
+				  const nlohmann::json& frameIndex, const std::optional<bodyfit::drape::GltfAnimationRecorder>& gltf)
+{
+	if (!args.metrics.empty())
+	{
+		std::ofstream out(args.metrics);
+		if (!out)
+			throw std::runtime_error(args.metrics + ": cannot open for writing");
+		out << metrics.dump(2) << "\n";
+		if (!out)
+			throw std::runtime_error(args.metrics + ": write failed");
+		std::cout << "metrics    " << args.metrics << "\n";
+	}
+	if (!args.frames.empty())
+	{
+		std::ofstream out((std::filesystem::path(args.frames) / "frames.json").string());
+		out << frameIndex.dump(1) << "\n";
+		if (!out)
+			throw std::runtime_error(args.frames + "/frames.json: write failed");
+		const std::string glb = (std::filesystem::path(args.frames) / "animation.glb").string();
+		gltf->writeGlb(glb);
+		std::cout << "frames     " << frameIndex["frames"].size() << " frames in " << args.frames
+				  << (sim.skinnedDriver() ? " (cloth and body OBJ)" : " (cloth OBJ)") << ", all in " << glb
+				  << "\n";
+	}
+}
+
+/// --png: front and side views of the final state, body (or ellipsoids) and cloth.
+void writePicture(const Args& args, const bodyfit::drape::Scene& scene, const bodyfit::drape::DrapeSimulation& sim)
+{
+#ifdef BODYFIT_HAVE_RENDER
+	using namespace bodyfit;
+	if (!args.png.empty())
+	{
+		std::vector<render::DrawMesh> meshes;
+		if (scene.render.showEllipsoids && !sim.body().ellipsoids.empty())
+		{
+			for (const Ellipsoid& e : sim.ellipsoidsWorld())
+			{
+				meshes.push_back(render::ellipsoidMesh(e.center, e.rotation, e.radii));
+				meshes.back().color = Eigen::Vector3f(0.85f, 0.68f, 0.55f);
+			}
+		}
+		else
+			meshes.push_back(toDraw(sim.bodyMeshWorld(), Eigen::Vector3f(0.86f, 0.72f, 0.62f), false));
+		meshes.push_back(toDraw(sim.clothMesh(), Eigen::Vector3f(0.22f, 0.42f, 0.78f), true));
+		render::RenderOptions ro;
+		ro.width = scene.render.width;
+		ro.height = scene.render.height;
+		render::writePng(args.png, render::renderTwoViews(meshes, ro));
+		std::cout << "picture    " << args.png << " (" << ro.width << "x" << ro.height << ", front | side)\n";
+	}
+#else
+	(void)args, (void)scene, (void)sim; // parseArgs refuses --png in a build without the renderer
+#endif
+}
+
 } // namespace
 
 int main(int argc, char** argv)
@@ -280,68 +369,9 @@ int main(int argc, char** argv)
 		};
 		nlohmann::json metrics = runAndMeasure(*sim, steps, progress, afterStep);
 
-		std::cout << "scene      " << scene.name << " (" << scene.path << ")\n"
-				  << "collider   " << sim->colliderDescription() << "\n"
-				  << "cloth      " << toString(scene.garment.type) << ", " << sim->nodeCount() << " nodes, effects:";
-		for (const std::string& e : scene.effects.listed())
-			std::cout << " " << e;
-		std::cout << "\n";
-		std::printf("steps      %d x %.5f s (%d substeps), %.3f s simulated\n", steps, scene.solver.dt,
-					scene.solver.substeps, sim->time());
-		std::printf("cost       %.3f ms/step (median %.3f), collision %.3f ms/step, %.0f ns/node/step\n",
-					metrics["ms_per_step"].get<double>(), metrics["ms_per_step_median"].get<double>(),
-					metrics["collision_ms_per_step"].get<double>(), metrics["ns_per_node_step"].get<double>());
-		std::cout << "quality    nodes inside body: end " << metrics["nodes_inside_body"] << ", max "
-				  << metrics["max_nodes_inside_body"] << " (sampled every " << scene.sampleEvery
-				  << " steps); inside ellipsoids " << metrics["nodes_inside_ellipsoids"] << "; NaN nodes "
-				  << metrics["nan_nodes"] << "\n"
-				  << "contact    " << metrics["contact_nodes"] << " nodes, mean gap to skin "
-				  << metrics["mean_contact_gap_m"] << " m\n";
-
-		if (!args.metrics.empty())
-		{
-			std::ofstream out(args.metrics);
-			if (!out)
-				throw std::runtime_error(args.metrics + ": cannot open for writing");
-			out << metrics.dump(2) << "\n";
-			if (!out)
-				throw std::runtime_error(args.metrics + ": write failed");
-			std::cout << "metrics    " << args.metrics << "\n";
-		}
-		if (!args.frames.empty())
-		{
-			std::ofstream out((std::filesystem::path(args.frames) / "frames.json").string());
-			out << frameIndex.dump(1) << "\n";
-			if (!out)
-				throw std::runtime_error(args.frames + "/frames.json: write failed");
-			const std::string glb = (std::filesystem::path(args.frames) / "animation.glb").string();
-			gltf->writeGlb(glb);
-			std::cout << "frames     " << frameIndex["frames"].size() << " frames in " << args.frames
-					  << (sim->skinnedDriver() ? " (cloth and body OBJ)" : " (cloth OBJ)") << ", all in " << glb
-					  << "\n";
-		}
-#ifdef BODYFIT_HAVE_RENDER
-		if (!args.png.empty())
-		{
-			std::vector<render::DrawMesh> meshes;
-			if (scene.render.showEllipsoids && !body.ellipsoids.empty())
-			{
-				for (const Ellipsoid& e : sim->ellipsoidsWorld())
-				{
-					meshes.push_back(render::ellipsoidMesh(e.center, e.rotation, e.radii));
-					meshes.back().color = Eigen::Vector3f(0.85f, 0.68f, 0.55f);
-				}
-			}
-			else
-				meshes.push_back(toDraw(sim->bodyMeshWorld(), Eigen::Vector3f(0.86f, 0.72f, 0.62f), false));
-			meshes.push_back(toDraw(sim->clothMesh(), Eigen::Vector3f(0.22f, 0.42f, 0.78f), true));
-			render::RenderOptions ro;
-			ro.width = scene.render.width;
-			ro.height = scene.render.height;
-			render::writePng(args.png, render::renderTwoViews(meshes, ro));
-			std::cout << "picture    " << args.png << " (" << ro.width << "x" << ro.height << ", front | side)\n";
-		}
-#endif
+		printSummary(scene, *sim, metrics, steps);
+		writeOutputs(args, *sim, metrics, frameIndex, gltf);
+		writePicture(args, scene, *sim);
 	}
 	catch (const BlownUp& e)
 	{
