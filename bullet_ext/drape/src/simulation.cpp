@@ -487,6 +487,9 @@ std::string DrapeSimulation::Impl::buildBodyShape(const Scene& scene, const Body
 	}
 	case ColliderKind::MeshBvh:
 		desc << buildMeshShape(scene, body.mesh);
+		if (body.animation)
+			desc << ", skinned vertices written and refitTree every substep (Bullet's triangle prisms and sparse-SDF "
+					"cells rebuilt)";
 		break;
 	case ColliderKind::ConvexHullCompound:
 		desc << buildHullCompound(scene, body);
