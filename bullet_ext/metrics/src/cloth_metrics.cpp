@@ -93,7 +93,7 @@ BodyReference::BodyReference(TriMesh mesh, std::vector<Ellipsoid> ellipsoids)
 	  ellipsoids_(checkedEllipsoids(ellipsoids)),
 	  pose_(btTransform::getIdentity()),
 	  inside_(mesh_),
-	  distance_(mesh_)
+	  distance_(std::in_place, mesh_)
 {
 }
 
@@ -105,11 +105,10 @@ void BodyReference::setShape(const Eigen::MatrixX3d& vertices, std::vector<Ellip
 	TriMesh moved = mesh_;
 	moved.V = vertices;
 	MeshInsideTest inside(moved); // validates the coordinates before anything is replaced
-	MeshDistanceGrid distance(moved);
 	ellipsoids_ = checkedEllipsoids(ellipsoids);
 	mesh_ = std::move(moved);
 	inside_ = std::move(inside);
-	distance_ = std::move(distance);
+	distance_.reset(); // rebuilt from mesh_ at the next distance query
 }
 
 void BodyReference::setPose(const btTransform& bodyToWorld)
@@ -120,7 +119,9 @@ void BodyReference::setPose(const btTransform& bodyToWorld)
 
 double BodyReference::signedSkinDistance(const Eigen::Vector3d& bodyPoint) const
 {
-	const double unsignedDistance = distance_.distance(bodyPoint);
+	if (!distance_)
+		distance_.emplace(mesh_);
+	const double unsignedDistance = distance_->distance(bodyPoint);
 	return inside_.isInside(bodyPoint) ? -unsignedDistance : unsignedDistance;
 }
 

@@ -24,6 +24,7 @@
 
 #include <limits>
 #include <memory>
+#include <optional>
 #include <vector>
 
 class btSoftBody;
@@ -50,8 +51,9 @@ public:
 	const btTransform& pose() const { return pose_; }
 
 	/// The body deformed (a skinned body at another instant): new positions for the mesh's vertices (same rows,
-	/// same faces) and the ellipsoids of that instant; rebuilds the inside test and the distance grid (O(faces), a
-	/// few ms for a 27k-triangle body), so call it when the body has changed, not per query.
+	/// same faces) and the ellipsoids of that instant; rebuilds the inside test now and the distance grid at the
+	/// next distance query (each O(faces), milliseconds for a 27k-triangle body): call it when the body has
+	/// changed, not per query.
 	/// \throws InvalidInputError for another vertex count, non-finite coordinates or an invalid ellipsoid.
 	void setShape(const Eigen::MatrixX3d& vertices, std::vector<Ellipsoid> ellipsoids);
 
@@ -73,7 +75,9 @@ private:
 	btTransform pose_;
 	Eigen::Isometry3d worldToBody_ = Eigen::Isometry3d::Identity();
 	MeshInsideTest inside_;
-	MeshDistanceGrid distance_;
+	/// Built with the reference, and after setShape on the first distance query (samples that only count nodes
+	/// inside do not pay for it).
+	mutable std::optional<MeshDistanceGrid> distance_;
 };
 
 /// Penetration and validity counts at one instant.
