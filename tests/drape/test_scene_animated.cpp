@@ -216,6 +216,10 @@ TEST_CASE("an animated body from a fit file with a skinning section follows the 
 	const std::vector<bodyfit::Ellipsoid> ea = a.ellipsoidsWorld(), eb = b.ellipsoidsWorld();
 	for (std::size_t i = 0; i < ea.size(); ++i)
 		CHECK((ea[i].center - eb[i].center).norm() == 0.0);
+	// The same fit file on another rig (male_young: other mesh size and bones) is refused, naming the section.
+	Scene other = scene;
+	other.body.animation->file = bodyfit_test::assetPath("animated/male_young.animated.glb");
+	CHECK_THAT(loadError(other), Catch::Contains("bodyfit_animated_fit.json: skinning."));
 	std::filesystem::remove(path);
 }
 
