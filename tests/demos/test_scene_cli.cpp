@@ -117,6 +117,25 @@ TEST_CASE("bodyfit-drape --frames on an animated scene writes the skinned body, 
 	CHECK(doc["meshes"].size() == 3);                          // one per frame
 	CHECK(doc["animations"][0]["channels"].size() == 3);       // one scale channel per frame node
 	CHECK(doc["meshes"][0]["primitives"].size() == 2);         // body and cloth
+	// Bad animation values: exit 2, the error (last line on stderr) names the key.
+	const std::string rig = std::string(BODYFIT_SCENE_DIR) + "/../assets/animated/female_young.animated.glb";
+	for (const auto& [animation, expected] :
+		 std::vector<std::pair<std::string, std::string>>{{"\"clip\": \"moonwalk\"", "body.animation.clip: "},
+														  {"\"clip\": \"walk\", \"speed\": 0", "body.animation.speed: value 0"},
+														  {"\"clip\": \"walk\", \"start_s\": 9", "body.animation.start_s: 9 s"}})
+	{
+		const fs::path bad = dir / "bad_animation.json";
+		{
+			std::ofstream out(bad);
+			out << "{\"body\": {\"animation\": {\"file\": \"" << rig << "\", " << animation
+				<< "}}, \"collider\": \"none\", \"garment\": {\"type\": \"patch\"}}";
+		}
+		const Run b = drape("\"" + bad.string() + "\" --steps 1", dir);
+		INFO(animation << " -> " << b.err);
+		CHECK(b.exitCode == 2);
+		CHECK(b.err.find("bodyfit-drape: error: ") != std::string::npos);
+		CHECK(b.err.find(expected) != std::string::npos);
+	}
 	const std::string validator = std::string(BODYFIT_SCENE_DIR) + "/../../tools/validate_gltf.js";
 	const fs::path report = dir / "validator.txt";
 	const int status = std::system(("node \"" + validator + "\" \"" + (dir / "frames" / "animation.glb").string() +
