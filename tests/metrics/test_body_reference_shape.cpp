@@ -29,6 +29,13 @@ TEST_CASE("BodyReference::setShape: inside test and skin distance follow the mov
 	CHECK(body.signedSkinDistance(p) == Approx(-0.2).margin(0.002));
 	CHECK(body.signedSkinDistance(Eigen::Vector3d::Zero()) == Approx(0.3).margin(0.002));
 
+	CHECK(body.skinDistance(Eigen::Vector3d::Zero()) == Approx(0.3).margin(0.002));
+	// The segment from the new centre out along +x leaves the moved sphere once, at x = 0.7 (t = 0.4 of 0.5 m);
+	// the polygonal sphere's vertex on that axis lies on the true sphere, so the hit is exact to rounding.
+	const std::vector<double> hits = body.segmentHits(p, Eigen::Vector3d(1.0, 0.0, 0.0));
+	REQUIRE(hits.size() == 1);
+	CHECK(hits.front() == Approx(0.4).margin(1e-9));
+
 	// A wrong vertex count or a non-finite coordinate is refused and leaves the reference as it was.
 	CHECK_THROWS_WITH(body.setShape(moved.topRows(10), {}), Catch::Contains("10 vertices given"));
 	Eigen::MatrixX3d bad = moved;
