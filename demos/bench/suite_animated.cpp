@@ -31,6 +31,7 @@ struct Sample
 	double time = 0.0;
 	int inside = 0;
 	double gapMm = std::numeric_limits<double>::quiet_NaN(); ///< mean contact gap (NaN: no contact)
+	int crossing = 0; ///< cloth links crossing the skinned body (both ends outside): faces cutting into a limb
 };
 
 /// Per-step costs (ms) and the samples of one run.
@@ -68,7 +69,8 @@ Run runScene(const bodyfit::drape::Scene& scene, const bodyfit::drape::BodyData&
 			const bodyfit::metrics::ContactMetrics c = sim.contacts();
 			r.contactMs.push_back(secondsSince(s1) * 1e3);
 			r.samples.push_back({k, sim.time(), inside,
-								 c.gap.count > 0 ? 1e3 * c.gap.mean : std::numeric_limits<double>::quiet_NaN()});
+								 c.gap.count > 0 ? 1e3 * c.gap.mean : std::numeric_limits<double>::quiet_NaN(),
+								 sim.edgeCrossings().crossing});
 		}
 		if (k % 50 == 0 || (k == steps && steps < 50))
 			progress(tag, "  %s: step %d/%d (%.0f s)", bodyfit::drape::toString(scene.collider.kind), k, steps,
@@ -104,12 +106,13 @@ Costs costsOf(const std::vector<Run>& runs, int n)
 	return {median(skin), median(write), median(coll), median(step)};
 }
 
-int maxInside(const Run& r, int steps)
+/// Largest value of a sample field over the samples up to `steps`.
+int maxOver(const Run& r, int steps, int Sample::*field)
 {
 	int m = 0;
 	for (const Sample& s : r.samples)
 		if (s.step <= steps)
-			m = std::max(m, s.inside);
+			m = std::max(m, s.*field);
 	return m;
 }
 
@@ -132,23 +135,27 @@ void writeSeries(const bodyfit_bench::Context& ctx, const Run& ours, const Run& 
 		return;
 	std::filesystem::create_directories(ctx.outDir);
 	std::ofstream csv(std::filesystem::path(ctx.outDir) / "animated_series.csv");
-	csv << "step,time_s,ours_nodes_inside,ours_contact_gap_mm,bullet_nodes_inside,bullet_contact_gap_mm\n";
+	csv << "step,time_s,ours_nodes_inside,ours_contact_gap_mm,bullet_nodes_inside,bullet_contact_gap_mm,"
+		   "ours_links_crossing,bullet_links_crossing\n";
 	auto cell = [](double v) { return std::isfinite(v) ? fmt(v, 3) : std::string("NaN"); };
 	for (std::size_t i = 0; i < ours.samples.size(); ++i)
 	{
 		const Sample& s = ours.samples[i];
+		const bool both = i < bullet.samples.size() && bullet.samples[i].step == s.step;
 		csv << s.step << "," << fmt(s.time, 4) << "," << s.inside << "," << cell(s.gapMm);
-		if (i < bullet.samples.size() && bullet.samples[i].step == s.step)
-			csv << "," << bullet.samples[i].inside << "," << cell(bullet.samples[i].gapMm) << "\n";
+		if (both)
+			csv << "," << bullet.samples[i].inside << "," << cell(bullet.samples[i].gapMm);
 		else
-			csv << ",NaN,NaN\n";
+			csv << ",NaN,NaN";
+		csv << "," << s.crossing << "," << (both ? std::to_string(bullet.samples[i].crossing) : std::string("NaN"))
+			<< "\n";
 	}
 }
 
 void plotSeries(const bodyfit_bench::Context& ctx, double bulletEnd)
 {
 	std::ostringstream gp;
-	gp << "set multiplot layout 2,1 title 'Walk clip, skirt: ours (bone-bound ellipsoids) vs Bullet (refitted "
+	gp << "set multiplot layout 3,1 title 'Walk clip, skirt: ours (bone-bound ellipsoids) vs Bullet (refitted "
 		  "btBvhTriangleMeshShape, SDF_RS), every 5 steps'\n"
 		  "set xlabel 'time (s)'\nset xrange [0:*]\n"
 		  "set arrow 1 from "
@@ -160,8 +167,11 @@ void plotSeries(const bodyfit_bench::Context& ctx, double bulletEnd)
 		  "set ylabel 'mean contact gap to the skin (mm)'\nset yrange [*:*]\n"
 		  "plot 'animated_series.csv' skip 1 using 2:4 with lines lw 2 lc rgb '#d62728' title 'ours', \\\n"
 		  "     '' skip 1 using 2:6 with linespoints pt 7 ps 0.5 lc rgb '#1f77b4' title 'Bullet (until the dashed line)'\n"
+		  "set ylabel 'cloth links crossing the skinned body'\nset yrange [0:*]\n"
+		  "plot 'animated_series.csv' skip 1 using 2:7 with lines lw 2 lc rgb '#d62728' title 'ours', \\\n"
+		  "     '' skip 1 using 2:8 with linespoints pt 7 ps 0.5 lc rgb '#1f77b4' title 'Bullet (until the dashed line)'\n"
 		  "unset multiplot";
-	plot(ctx, "animated", gp.str(), 1000, 800);
+	plot(ctx, "animated", gp.str(), 1000, 1100);
 }
 
 } // namespace
@@ -196,10 +206,11 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(animated,
 	auto ratio = [](double a, double o) { return fmt(a / std::max(1e-9, o), 0) + "x"; };
 	Table t({"collider", "steps", "nodes", "body update ms/step", "of which pose+skin+ellipsoids",
 			 "of which shape write", "collision ms/step", "body update + collision ms/step", "step ms",
-			 "max nodes inside skinned body", "mean contact gap mm", "settings"});
+			 "max nodes inside skinned body", "max links crossing skinned body", "mean contact gap mm", "settings"});
 	auto row = [&](const std::string& name, const Run& r, int n, const Costs& c) {
 		t.addRow({name, fmtInt(n), fmtInt(r.nodes), fmt(c.body(), 3), fmt(c.skin, 3), fmt(c.write, 3), fmt(c.coll, 3),
-				  fmt(c.body() + c.coll, 3), fmt(c.step, 2), fmtInt(maxInside(r, n)), fmt(meanGap(r, n), 2), r.settings});
+				  fmt(c.body() + c.coll, 3), fmt(c.step, 2), fmtInt(maxOver(r, n, &Sample::inside)),
+				  fmtInt(maxOver(r, n, &Sample::crossing)), fmt(meanGap(r, n), 2), r.settings});
 	};
 	row("ours (whole run)", ours.front(), steps, oursAll);
 	row("ours (first " + std::to_string(bulletSteps) + " steps)", ours.front(), bulletSteps, oursWindow);
@@ -216,7 +227,8 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(animated,
 		  << " ms for the inside count (the skinned body's inside test rebuilt for the pose) and "
 		  << fmt(median(ours.front().contactMs), 1)
 		  << " ms for the contact gap (its distance grid rebuilt). Nodes inside: cloth nodes inside the skinned body mesh of the instant (ray-parity vote), "
-			 "largest over samples every 5 steps. Contact gap: mean signed distance to the skin of the nodes in contact "
+			 "largest over samples every 5 steps. Links crossing: cloth links with both ends outside the skinned body whose "
+			 "segment passes through it (a face cutting into a limb between nodes), largest over the samples. Contact gap: mean signed distance to the skin of the nodes in contact "
 			 "(ours: within skin offset + 3 mm of the ellipsoids; Bullet: holding a rigid contact), averaged over the "
 			 "samples. Time series: animated_series.csv, animated.png.";
 	emitTable(ctx, "animated", "animated body: bone-bound ellipsoids vs Bullet's refitted mesh (walk, skirt)", t,

@@ -37,7 +37,8 @@ TEST_CASE("bodyfit-bench animated: table, time series and 0 nodes inside for our
 	std::ifstream series(dir / "animated_series.csv");
 	std::string line;
 	std::getline(series, line);
-	CHECK(line == "step,time_s,ours_nodes_inside,ours_contact_gap_mm,bullet_nodes_inside,bullet_contact_gap_mm");
+	CHECK(line == "step,time_s,ours_nodes_inside,ours_contact_gap_mm,bullet_nodes_inside,bullet_contact_gap_mm,"
+				  "ours_links_crossing,bullet_links_crossing");
 	int rows = 0;
 	while (std::getline(series, line))
 		++rows;

@@ -801,6 +801,11 @@ metrics::ContactMetrics DrapeSimulation::contacts() const
 	return metrics::measureContacts(*cloth_, impl_->referenceAt(time_), contactOptions());
 }
 
+metrics::EdgeCrossings DrapeSimulation::edgeCrossings() const
+{
+	return metrics::measureEdgeCrossings(*cloth_, impl_->referenceAt(time_));
+}
+
 int DrapeSimulation::sdfCells() const { return impl_->world->getWorldInfo().m_sparsesdf.ncells; }
 
 namespace

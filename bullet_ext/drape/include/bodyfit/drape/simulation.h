@@ -141,6 +141,8 @@ public:
 	std::vector<double> skinDistances(const std::vector<int>& nodes) const;
 	/// Contact nodes and their gap to the skin now.
 	metrics::ContactMetrics contacts() const;
+	/// Cloth links crossing the body skin now (both ends outside, the segment through the mesh).
+	metrics::EdgeCrossings edgeCrossings() const;
 	/// Sparse-SDF cells currently cached by Bullet (0 for the ellipsoid collider, which needs none).
 	int sdfCells() const;
 
