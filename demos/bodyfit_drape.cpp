@@ -6,6 +6,7 @@
 #ifdef BODYFIT_HAVE_RENDER
 #include "render/offscreen_renderer.h"
 #endif
+#include "bodyfit/drape/gltf_animation.h"
 #include "bodyfit/drape/scene.h"
 #include "bodyfit/drape/simulation.h"
 #include "bodyfit/drape/stability.h"
@@ -22,6 +23,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -38,8 +40,10 @@ const char* kUsage =
 	"  --collider KIND      ellipsoids | mesh-bvh | convex-hull-compound | ellipsoids-sdf | none\n"
 	"                       (overrides collider.kind)\n"
 	"  --steps N            number of steps (default: the scene's solver.steps)\n"
-	"  --frames DIR         write the cloth as DIR/frame_NNNNN.obj every output.frame_every steps,\n"
-	"                       plus DIR/frames.json (step, time, body pose per frame)\n"
+	"  --frames DIR         write the cloth as DIR/frame_NNNNN.obj every output.frame_every steps (and\n"
+	"                       an animated body's skinned mesh as DIR/body_NNNNN.obj), DIR/frames.json\n"
+	"                       (step, time, body pose per frame) and DIR/animation.glb: body + cloth of\n"
+	"                       every frame as one glTF 2.0 animation that any glTF viewer plays\n"
 	"  --metrics OUT.json   write the metrics (steps, nodes, ms_per_step, collision_ms_per_step,\n"
 	"                       nodes_inside_body, max_nodes_inside_body, mean_contact_gap_m, nan_nodes, ...)\n"
 	"  --png OUT.png        picture of the final state: front and side views, body (or ellipsoids) + cloth\n"
@@ -153,16 +157,121 @@ bodyfit::render::DrawMesh toDraw(const bodyfit::TriMesh& m, const Eigen::Vector3
 }
 #endif
 
-void writeFrame(const std::string& dir, const bodyfit::drape::DrapeSimulation& sim, nlohmann::json& index)
+/// The parts of DIR/animation.glb: the body (skinned when animated, posed otherwise) and the cloth.
+bodyfit::drape::GltfAnimationRecorder gltfRecorder(const bodyfit::drape::DrapeSimulation& sim)
 {
-	char name[64];
+	bodyfit::drape::GltfPart body{"body", Eigen::Vector3f(0.86f, 0.72f, 0.62f), false, sim.body().mesh.F};
+	bodyfit::drape::GltfPart cloth{"cloth", Eigen::Vector3f(0.22f, 0.42f, 0.78f), true, sim.garment().mesh.F};
+	return bodyfit::drape::GltfAnimationRecorder({body, cloth});
+}
+
+void writeFrame(const std::string& dir, const bodyfit::drape::DrapeSimulation& sim, nlohmann::json& index,
+				bodyfit::drape::GltfAnimationRecorder& gltf)
+{
+	char name[64], bodyName[64];
 	std::snprintf(name, sizeof(name), "frame_%05d.obj", sim.stepsDone());
-	bodyfit::saveTriMesh((std::filesystem::path(dir) / name).string(), sim.clothMesh());
+	std::snprintf(bodyName, sizeof(bodyName), "body_%05d.obj", sim.stepsDone());
+	const bodyfit::TriMesh cloth = sim.clothMesh(), body = sim.bodyMeshWorld();
+	bodyfit::saveTriMesh((std::filesystem::path(dir) / name).string(), cloth);
+	if (sim.skinnedDriver())
+		bodyfit::saveTriMesh((std::filesystem::path(dir) / bodyName).string(), body);
+	gltf.addFrame(sim.time(), {&body.V, &cloth.V});
 	const Eigen::Isometry3d pose = sim.bodyPose();
 	nlohmann::json m = nlohmann::json::array();
 	for (int r = 0; r < 4; ++r)
 		m.push_back({pose.matrix()(r, 0), pose.matrix()(r, 1), pose.matrix()(r, 2), pose.matrix()(r, 3)});
 	index["frames"].push_back({{"step", sim.stepsDone()}, {"time_s", sim.time()}, {"file", name}, {"body_pose", m}});
+	if (sim.skinnedDriver())
+		index["frames"].back()["body_file"] = bodyName;
+}
+
+/// The run's summary on stdout: scene, collider, cloth, steps, cost, quality, contacts (and an animated body's clip).
+void printSummary(const bodyfit::drape::Scene& scene, const bodyfit::drape::DrapeSimulation& sim,
+				  const nlohmann::json& metrics, int steps)
+{
+	using bodyfit::drape::toString;
+	std::cout << "scene      " << scene.name << " (" << scene.path << ")\n"
+			  << "collider   " << sim.colliderDescription() << "\n"
+			  << "cloth      " << toString(scene.garment.type) << ", " << sim.nodeCount() << " nodes, effects:";
+	for (const std::string& e : scene.effects.listed())
+		std::cout << " " << e;
+	std::cout << "\n";
+	std::printf("steps      %d x %.5f s (%d substeps), %.3f s simulated\n", steps, scene.solver.dt,
+				scene.solver.substeps, sim.time());
+	std::printf("cost       %.3f ms/step (median %.3f), collision %.3f ms/step, %.0f ns/node/step\n",
+				metrics["ms_per_step"].get<double>(), metrics["ms_per_step_median"].get<double>(),
+				metrics["collision_ms_per_step"].get<double>(), metrics["ns_per_node_step"].get<double>());
+	std::cout << "quality    nodes inside body: end " << metrics["nodes_inside_body"] << ", max "
+			  << metrics["max_nodes_inside_body"] << " (sampled every " << scene.sampleEvery
+			  << " steps); inside ellipsoids " << metrics["nodes_inside_ellipsoids"] << "; NaN nodes "
+			  << metrics["nan_nodes"] << "\n"
+			  << "contact    " << metrics["contact_nodes"] << " nodes, mean gap to skin "
+			  << metrics["mean_contact_gap_m"] << " m\n";
+	if (metrics.contains("animation"))
+		std::printf("body       clip '%s' x %.3g (loop %s), posed every substep: %.3f ms/step pose + skin + ellipsoids, "
+					"%.3f ms/step shape write (medians)\n",
+					metrics["animation"]["clip"].get<std::string>().c_str(), metrics["animation"]["speed"].get<double>(),
+					metrics["animation"]["loop"].get<bool>() ? "on" : "off",
+					metrics["body_skin_ms_per_step_median"].get<double>(),
+					metrics["body_write_ms_per_step_median"].get<double>());
+}
+
+/// --metrics (the JSON) and --frames (frames.json and animation.glb; the OBJ files were written while stepping).
+void writeOutputs(const Args& args, const bodyfit::drape::DrapeSimulation& sim, const nlohmann::json& metrics,
+				  const nlohmann::json& frameIndex, const std::optional<bodyfit::drape::GltfAnimationRecorder>& gltf)
+{
+	if (!args.metrics.empty())
+	{
+		std::ofstream out(args.metrics);
+		if (!out)
+			throw std::runtime_error(args.metrics + ": cannot open for writing");
+		out << metrics.dump(2) << "\n";
+		if (!out)
+			throw std::runtime_error(args.metrics + ": write failed");
+		std::cout << "metrics    " << args.metrics << "\n";
+	}
+	if (!args.frames.empty())
+	{
+		std::ofstream out((std::filesystem::path(args.frames) / "frames.json").string());
+		out << frameIndex.dump(1) << "\n";
+		if (!out)
+			throw std::runtime_error(args.frames + "/frames.json: write failed");
+		const std::string glb = (std::filesystem::path(args.frames) / "animation.glb").string();
+		gltf->writeGlb(glb);
+		std::cout << "frames     " << frameIndex["frames"].size() << " frames in " << args.frames
+				  << (sim.skinnedDriver() ? " (cloth and body OBJ)" : " (cloth OBJ)") << ", all in " << glb
+				  << "\n";
+	}
+}
+
+/// --png: front and side views of the final state, body (or ellipsoids) and cloth.
+void writePicture(const Args& args, const bodyfit::drape::Scene& scene, const bodyfit::drape::DrapeSimulation& sim)
+{
+#ifdef BODYFIT_HAVE_RENDER
+	using namespace bodyfit;
+	if (!args.png.empty())
+	{
+		std::vector<render::DrawMesh> meshes;
+		if (scene.render.showEllipsoids && !sim.body().ellipsoids.empty())
+		{
+			for (const Ellipsoid& e : sim.ellipsoidsWorld())
+			{
+				meshes.push_back(render::ellipsoidMesh(e.center, e.rotation, e.radii));
+				meshes.back().color = Eigen::Vector3f(0.85f, 0.68f, 0.55f);
+			}
+		}
+		else
+			meshes.push_back(toDraw(sim.bodyMeshWorld(), Eigen::Vector3f(0.86f, 0.72f, 0.62f), false));
+		meshes.push_back(toDraw(sim.clothMesh(), Eigen::Vector3f(0.22f, 0.42f, 0.78f), true));
+		render::RenderOptions ro;
+		ro.width = scene.render.width;
+		ro.height = scene.render.height;
+		render::writePng(args.png, render::renderTwoViews(meshes, ro));
+		std::cout << "picture    " << args.png << " (" << ro.width << "x" << ro.height << ", front | side)\n";
+	}
+#else
+	(void)args, (void)scene, (void)sim; // parseArgs refuses --png in a build without the renderer
+#endif
 }
 
 } // namespace
@@ -220,6 +329,7 @@ int main(int argc, char** argv)
 
 	const int steps = args.steps >= 0 ? args.steps : scene.solver.steps;
 	nlohmann::json frameIndex;
+	std::optional<GltfAnimationRecorder> gltf;
 	try
 	{
 		// Output directories are created as needed (e.g. --png out/skirt.png on a fresh checkout).
@@ -231,7 +341,8 @@ int main(int argc, char** argv)
 			std::filesystem::create_directories(args.frames);
 			frameIndex["scene"] = scene.path;
 			frameIndex["frames"] = nlohmann::json::array();
-			writeFrame(args.frames, *sim, frameIndex);
+			gltf.emplace(gltfRecorder(*sim));
+			writeFrame(args.frames, *sim, frameIndex, *gltf);
 		}
 		std::cerr << "bodyfit-drape: " << scene.name << ", " << sim->nodeCount() << " cloth nodes, "
 				  << sim->colliderDescription() << "\n";
@@ -254,68 +365,13 @@ int main(int argc, char** argv)
 			if (!blowUp.empty()) // a run must not end with exit 0 and plausible metrics after NaN or a launch
 				throw BlownUp("the simulation blew up at step " + std::to_string(k) + ": " + blowUp);
 			if (!args.frames.empty() && (k % scene.frameEvery == 0 || k == steps))
-				writeFrame(args.frames, *sim, frameIndex);
+				writeFrame(args.frames, *sim, frameIndex, *gltf);
 		};
 		nlohmann::json metrics = runAndMeasure(*sim, steps, progress, afterStep);
 
-		std::cout << "scene      " << scene.name << " (" << scene.path << ")\n"
-				  << "collider   " << sim->colliderDescription() << "\n"
-				  << "cloth      " << toString(scene.garment.type) << ", " << sim->nodeCount() << " nodes, effects:";
-		for (const std::string& e : scene.effects.listed())
-			std::cout << " " << e;
-		std::cout << "\n";
-		std::printf("steps      %d x %.5f s (%d substeps), %.3f s simulated\n", steps, scene.solver.dt,
-					scene.solver.substeps, sim->time());
-		std::printf("cost       %.3f ms/step (median %.3f), collision %.3f ms/step, %.0f ns/node/step\n",
-					metrics["ms_per_step"].get<double>(), metrics["ms_per_step_median"].get<double>(),
-					metrics["collision_ms_per_step"].get<double>(), metrics["ns_per_node_step"].get<double>());
-		std::cout << "quality    nodes inside body: end " << metrics["nodes_inside_body"] << ", max "
-				  << metrics["max_nodes_inside_body"] << " (sampled every " << scene.sampleEvery
-				  << " steps); inside ellipsoids " << metrics["nodes_inside_ellipsoids"] << "; NaN nodes "
-				  << metrics["nan_nodes"] << "\n"
-				  << "contact    " << metrics["contact_nodes"] << " nodes, mean gap to skin "
-				  << metrics["mean_contact_gap_m"] << " m\n";
-
-		if (!args.metrics.empty())
-		{
-			std::ofstream out(args.metrics);
-			if (!out)
-				throw std::runtime_error(args.metrics + ": cannot open for writing");
-			out << metrics.dump(2) << "\n";
-			if (!out)
-				throw std::runtime_error(args.metrics + ": write failed");
-			std::cout << "metrics    " << args.metrics << "\n";
-		}
-		if (!args.frames.empty())
-		{
-			std::ofstream out((std::filesystem::path(args.frames) / "frames.json").string());
-			out << frameIndex.dump(1) << "\n";
-			if (!out)
-				throw std::runtime_error(args.frames + "/frames.json: write failed");
-			std::cout << "frames     " << frameIndex["frames"].size() << " OBJ files in " << args.frames << "\n";
-		}
-#ifdef BODYFIT_HAVE_RENDER
-		if (!args.png.empty())
-		{
-			std::vector<render::DrawMesh> meshes;
-			if (scene.render.showEllipsoids && !body.ellipsoids.empty())
-			{
-				for (const Ellipsoid& e : sim->ellipsoidsWorld())
-				{
-					meshes.push_back(render::ellipsoidMesh(e.center, e.rotation, e.radii));
-					meshes.back().color = Eigen::Vector3f(0.85f, 0.68f, 0.55f);
-				}
-			}
-			else
-				meshes.push_back(toDraw(sim->bodyMeshWorld(), Eigen::Vector3f(0.86f, 0.72f, 0.62f), false));
-			meshes.push_back(toDraw(sim->clothMesh(), Eigen::Vector3f(0.22f, 0.42f, 0.78f), true));
-			render::RenderOptions ro;
-			ro.width = scene.render.width;
-			ro.height = scene.render.height;
-			render::writePng(args.png, render::renderTwoViews(meshes, ro));
-			std::cout << "picture    " << args.png << " (" << ro.width << "x" << ro.height << ", front | side)\n";
-		}
-#endif
+		printSummary(scene, *sim, metrics, steps);
+		writeOutputs(args, *sim, metrics, frameIndex, gltf);
+		writePicture(args, scene, *sim);
 	}
 	catch (const BlownUp& e)
 	{

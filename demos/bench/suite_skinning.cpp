@@ -10,10 +10,15 @@
 // fitSegmented, default options) with the median of each phase over the repeats: segmentation, fit (refinement:
 // K-means + MVEEs), triangle cover, their sum (the bind-pose fit; also as CPU time over every thread, which is the
 // single-core time), the true-distance report, and the binding time.
+// Then the skinned-body driver of the scene runner (bodyfit/bridge/btSkinnedBodyDriver.h), as it runs at every
+// substep: the same update plus writing the ellipsoids into the body's btEllipsoidCompoundShape, timed apart
+// (goal: <= 2 ms per frame for the 13,380-vertex body on one core).
 // `--part fit` runs only the bind-pose fit table; `--threads N` sets the fit's threads (BodyFitOptions::threads).
-// The per-frame update is single-threaded.
+// The per-frame update and the driver are single-threaded.
 #include "bench/bench_common.h"
 
+#include "bodyfit/bridge/btBodyFitToBullet.h"
+#include "bodyfit/bridge/btSkinnedBodyDriver.h"
 #include "bodyfit/fitting/fit_pipeline.h"
 #include "bodyfit/fitting/segmentation.h"
 #include "bodyfit/fitting/skinned_fit.h"
@@ -158,6 +163,47 @@ BindFitTiming timeBindFit(const bodyfit::TriMesh& mesh, int repeats, int threads
 	return out;
 }
 
+struct DriverTiming
+{
+	int frames = 0;
+	double bodyMedian = 0.0, writeMedian = 0.0, totalMedian = 0.0, totalWorst = 0.0, totalCpu = 0.0;
+};
+
+/// The driver posing the body at every 30 fps frame of the clip and writing the compound, `repeats` times.
+DriverTiming timeDriver(const bodyfit::Rig& rig, const bodyfit::BodyFit& fit, const bodyfit::SkinBinding& binding,
+						const bodyfit::AnimationClip& clip, int repeats)
+{
+	std::vector<bodyfit::Ellipsoid> ellipsoids;
+	for (const bodyfit::FittedEllipsoid& e : fit.ellipsoids)
+		ellipsoids.push_back(e.ellipsoid);
+	const auto compound = bodyfit::createEllipsoidCompound(ellipsoids);
+	bodyfit::AnimationTiming timing;
+	timing.loop = false;
+	bodyfit::btSkinnedBodyDriver driver(rig, fit, binding, clip, timing);
+	driver.setCompound(compound.get());
+	DriverTiming out;
+	out.frames = int(clip.duration * 30.0) + 1;
+	std::vector<double> body, write, total, cpu;
+	for (int r = 0; r < std::max(1, repeats); ++r)
+		for (int f = 0; f < out.frames; ++f)
+		{
+			// Distinct times across repeats (the driver skips a call at the time it is already posed at).
+			const double t = f / 30.0 + (r % 2 == 1 ? 1e-6 : 0.0);
+			const double c0 = threadCpuMs();
+			driver.update(t);
+			cpu.push_back(threadCpuMs() - c0);
+			body.push_back(driver.stats().lastBodySeconds * 1e3);
+			write.push_back(driver.stats().lastCompoundSeconds * 1e3);
+			total.push_back(body.back() + write.back());
+		}
+	out.bodyMedian = median(body);
+	out.writeMedian = median(write);
+	out.totalMedian = median(total);
+	out.totalWorst = *std::max_element(total.begin(), total.end());
+	out.totalCpu = median(cpu);
+	return out;
+}
+
 } // namespace
 
 BODYFIT_BENCH_SUITE_WITH_OPTIONS(skinning, "rigged body: per-frame update (pose, skin, ellipsoids) and the bind-pose fit",
@@ -173,6 +219,9 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(skinning, "rigged body: per-frame update (pose,
 	bodyfit_bench::Table fits({"body", "vertices", "ellipsoids", "rigid", "bound points", "segmentation ms",
 							   "fit ms", "cover ms", "bind-pose fit ms", "bind-pose fit cpu ms", "report ms", "bind ms",
 							   "radial error mm (bind)"});
+	bodyfit_bench::Table driverTable({"body", "clip", "frames", "update ms median", "compound write ms median",
+									  "update + write ms median", "update + write ms worst",
+									  "update + write cpu ms median"});
 	const int repeats = ctx.repeatsGiven ? ctx.repeats : (ctx.quick ? 1 : 5);
 	for (const char* name : {"female_young", "male_young"})
 	{
@@ -197,6 +246,13 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(skinning, "rigged body: per-frame update (pose,
 					 bodyfit_bench::fmt(fit.meanRadialError() * 1000.0, 2)});
 		if (part == "fit")
 			continue;
+		for (const bodyfit::AnimationClip& clip : rig.clips)
+		{
+			const DriverTiming d = timeDriver(rig, fit, binding, clip, repeats);
+			driverTable.addRow({name, clip.name, bodyfit_bench::fmtInt(d.frames), bodyfit_bench::fmt(d.bodyMedian, 3),
+								bodyfit_bench::fmt(d.writeMedian, 3), bodyfit_bench::fmt(d.totalMedian, 3),
+								bodyfit_bench::fmt(d.totalWorst, 3), bodyfit_bench::fmt(d.totalCpu, 3)});
+		}
 		for (const bool perAxis : {true, false})
 		{
 			bodyfit::SkinnedBody body(rig, fit, binding, {perAxis});
@@ -213,6 +269,7 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(skinning, "rigged body: per-frame update (pose,
 	}
 	if (part == "fit")
 		return bodyfit_bench::emit(ctx, "skinning_fit", fits);
-	const int rc = bodyfit_bench::emit(ctx, "skinning_frames", frames);
+	int rc = bodyfit_bench::emit(ctx, "skinning_frames", frames);
+	rc = std::max(rc, bodyfit_bench::emit(ctx, "skinning_driver", driverTable));
 	return std::max(rc, bodyfit_bench::emit(ctx, "skinning_fit", fits));
 }

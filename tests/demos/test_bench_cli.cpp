@@ -44,6 +44,7 @@ TEST_CASE("bodyfit-bench: bad suite options exit 2 with one line naming the opti
 		{"colliders_patch --cases ax", "--cases: expected letters from \"abct\", got \"ax\""},
 		{"colliders_patch --cases", "--cases needs a value"},
 		{"nosuch", "unknown suite \"nosuch\""},
+		{"animated --bullet-steps 0", "--bullet-steps: 0 is out of range [1, 100000]"},
 	};
 	for (const Case& c : cases)
 	{

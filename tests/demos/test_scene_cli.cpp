@@ -5,6 +5,9 @@
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -64,6 +67,71 @@ TEST_CASE("bodyfit-drape runs a bundled scene and writes metrics, picture and fr
 	const nlohmann::json frames = nlohmann::json::parse(readFile(dir / "frames" / "frames.json"));
 	CHECK(frames["frames"].size() == 3);
 	CHECK(r.err.find("step 12/12") != std::string::npos); // progress line on stderr
+	fs::remove_all(dir);
+}
+
+TEST_CASE("bodyfit-drape --frames on an animated scene writes the skinned body, the cloth and a valid glTF",
+		  "[scene][cli][animation]")
+{
+	const fs::path dir = freshDir("bodyfit_drape_cli_animated");
+	const std::string scene = std::string(BODYFIT_SCENE_DIR) + "/animated_walk_skirt.json";
+	const bodyfit_test::ProgramRun r = drape("\"" + scene + "\" --steps 12 --frames \"" + (dir / "frames").string() + "\"");
+	INFO(r.err);
+	REQUIRE(r.exitCode == 0);
+	for (const char* f : {"frame_00000.obj", "frame_00010.obj", "frame_00012.obj", "body_00000.obj", "body_00010.obj",
+						  "body_00012.obj", "animation.glb", "frames.json"})
+		CHECK(fs::exists(dir / "frames" / f));
+	const nlohmann::json frames = nlohmann::json::parse(readFile(dir / "frames" / "frames.json"));
+	REQUIRE(frames["frames"].size() == 3);
+	CHECK(frames["frames"][2]["body_file"] == "body_00012.obj");
+	// The skinned body: the rig's 13,380 vertices in every body OBJ ("v " lines).
+	const std::string body = readFile(dir / "frames" / "body_00012.obj");
+	std::size_t vertices = 0;
+	for (std::size_t at = body.find("v "); at != std::string::npos; at = body.find("\nv ", at + 1))
+		++vertices;
+	CHECK(vertices == 13380);
+	// The GLB: structure here, and the Khronos validator when installed (.ci/install-deps.sh).
+	const std::string glb = readFile(dir / "frames" / "animation.glb");
+	REQUIRE(glb.size() > 20);
+	CHECK(glb.compare(0, 4, "glTF") == 0);
+	std::uint32_t jsonLength = 0;
+	std::memcpy(&jsonLength, glb.data() + 12, 4);
+	const nlohmann::json doc = nlohmann::json::parse(glb.substr(20, jsonLength));
+	CHECK(doc["meshes"].size() == 3);                          // one per frame
+	CHECK(doc["animations"][0]["channels"].size() == 3);       // one scale channel per frame node
+	CHECK(doc["meshes"][0]["primitives"].size() == 2);         // body and cloth
+	// Bad animation values: exit 2, the error (last line on stderr) names the key.
+	const std::string rig = std::string(BODYFIT_SCENE_DIR) + "/../assets/animated/female_young.animated.glb";
+	for (const auto& [animation, expected] :
+		 std::vector<std::pair<std::string, std::string>>{{"\"clip\": \"moonwalk\"", "body.animation.clip: "},
+														  {"\"clip\": \"walk\", \"speed\": 0", "body.animation.speed: value 0"},
+														  {"\"clip\": \"walk\", \"start_s\": 9", "body.animation.start_s: 9 s"}})
+	{
+		const fs::path bad = dir / "bad_animation.json";
+		{
+			std::ofstream out(bad);
+			out << "{\"body\": {\"animation\": {\"file\": \"" << rig << "\", " << animation
+				<< "}}, \"collider\": \"none\", \"garment\": {\"type\": \"patch\"}}";
+		}
+		const bodyfit_test::ProgramRun b = drape("\"" + bad.string() + "\" --steps 1");
+		INFO(animation << " -> " << b.err);
+		CHECK(b.exitCode == 2);
+		CHECK(b.err.find("bodyfit-drape: error: ") != std::string::npos);
+		CHECK(b.err.find(expected) != std::string::npos);
+	}
+	const std::string validator = std::string(BODYFIT_SCENE_DIR) + "/../../tools/validate_gltf.js";
+	const fs::path report = dir / "validator.txt";
+	const int status = std::system(("node \"" + validator + "\" \"" + (dir / "frames" / "animation.glb").string() +
+									"\" > \"" + report.string() + "\" 2>&1").c_str());
+	const int code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+	INFO(readFile(report));
+	if (code == 0)
+		CHECK(readFile(report).find(": 0 errors, 0 warnings") != std::string::npos);
+	else
+	{
+		CHECK((code == 2 || code == 127)); // 2: no gltf-validator, 127: no node; 1 would be an invalid file
+		WARN("gltf-validator not installed: the GLB was checked structurally only");
+	}
 	fs::remove_all(dir);
 }
 

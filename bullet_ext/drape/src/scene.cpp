@@ -244,10 +244,43 @@ void requireClothEdge(ObjectReader& r, const std::string& key, double edge, cons
 								   formatNumber(kMinClothEdge) + " m");
 }
 
+AnimationSpec parseAnimation(ObjectReader r)
+{
+	AnimationSpec a;
+	a.file = r.file("file");
+	if (r.has("clip"))
+	{
+		const json& c = r.get("clip");
+		if (c.is_string())
+		{
+			a.clip = c.get<std::string>();
+			if (a.clip.empty())
+				r.fail(r.keyPath("clip"), "empty clip name");
+		}
+		else if (c.is_number())
+			a.clip = std::to_string(r.checkInteger(c, r.keyPath("clip"), 0, 1000000));
+		else
+			r.fail(r.keyPath("clip"), std::string("expected a clip name or index, got ") + typeName(c));
+	}
+	a.speed = r.number("speed", a.speed, 0.0, kMaxAnimationSpeed, /*loOpen=*/true);
+	a.loop = r.boolean("loop", a.loop);
+	a.startS = r.number("start_s", a.startS, 0.0, 1e6);
+	r.finish();
+	return a;
+}
+
 BodySpec parseBody(ObjectReader r)
 {
 	BodySpec b;
-	b.mesh = r.file("mesh");
+	if (r.has("animation"))
+	{
+		if (r.has("mesh"))
+			r.fail(r.keyPath("mesh"), "an animated body is the skinned mesh of body.animation.file: give no mesh");
+		b.animation = parseAnimation(r.child("animation"));
+		b.mesh = b.animation->file;
+	}
+	else
+		b.mesh = r.file("mesh");
 	const bool hasEllipsoids = r.has("ellipsoids"), hasFit = r.has("fit");
 	if (hasEllipsoids && hasFit)
 		r.fail(r.keyPath("fit"), "give either 'ellipsoids' (a fit file) or 'fit' (fit parameters), not both");
@@ -609,7 +642,7 @@ Scene parseScene(const nlohmann::json& document, const std::string& path)
 	scene.body = parseBody(top.child("body"));
 	scene.collider = parseCollider(top.get("collider"), top);
 	if (scene.collider.kind != ColliderKind::None && scene.body.ellipsoids.empty() && !scene.body.fit &&
-		scene.collider.kind != ColliderKind::MeshBvh)
+		!scene.body.animation && scene.collider.kind != ColliderKind::MeshBvh)
 		top.fail("body", std::string("collider '") + toString(scene.collider.kind) +
 							 "' needs fitted ellipsoids: give body.ellipsoids or body.fit");
 	scene.garment = parseGarment(top.child("garment"));
@@ -619,6 +652,9 @@ Scene parseScene(const nlohmann::json& document, const std::string& path)
 		scene.solver = parseSolver(top.child("solver"));
 	if (top.has("effects"))
 		parseEffects(top.get("effects"), "effects", scene, path, baseDir);
+	if (scene.body.animation && scene.effects.bodyMotion)
+		top.fail("effects", "body_motion moves a rigid body; an animated body (body.animation) is moved by its clip: "
+							"give one or the other");
 	if (top.has("render"))
 	{
 		ObjectReader r = top.child("render");

@@ -202,13 +202,37 @@ BodyReference::BodyReference(TriMesh mesh, std::vector<Ellipsoid> ellipsoids)
 	  ellipsoids_(checkedEllipsoids(ellipsoids)),
 	  pose_(btTransform::getIdentity()),
 	  inside_(mesh_),
-	  distance_(mesh_),
+	  distance_(std::in_place, mesh_),
 	  triangles_(std::make_shared<const TriangleGrid>(mesh_))
 {
 }
 
+void BodyReference::setShape(const Eigen::MatrixX3d& vertices, std::vector<Ellipsoid> ellipsoids)
+{
+	if (vertices.rows() != mesh_.V.rows())
+		throw InvalidInputError("BodyReference::setShape: " + std::to_string(vertices.rows()) +
+								" vertices given, the body mesh has " + std::to_string(mesh_.V.rows()));
+	TriMesh moved = mesh_;
+	moved.V = vertices;
+	MeshInsideTest inside(moved); // validates the coordinates before anything is replaced
+	ellipsoids_ = checkedEllipsoids(ellipsoids);
+	mesh_ = std::move(moved);
+	inside_ = std::move(inside);
+	distance_.reset(); // both rebuilt from mesh_ at the next query that needs them
+	triangles_.reset();
+}
+
+const MeshDistanceGrid& BodyReference::distanceGrid() const
+{
+	if (!distance_)
+		distance_.emplace(mesh_);
+	return *distance_;
+}
+
 std::vector<double> BodyReference::segmentHits(const Eigen::Vector3d& a, const Eigen::Vector3d& b) const
 {
+	if (!triangles_)
+		triangles_ = std::make_shared<const TriangleGrid>(mesh_);
 	return triangles_->hits(mesh_, a, b);
 }
 
@@ -220,7 +244,7 @@ void BodyReference::setPose(const btTransform& bodyToWorld)
 
 double BodyReference::signedSkinDistance(const Eigen::Vector3d& bodyPoint) const
 {
-	const double unsignedDistance = distance_.distance(bodyPoint);
+	const double unsignedDistance = distanceGrid().distance(bodyPoint);
 	return inside_.isInside(bodyPoint) ? -unsignedDistance : unsignedDistance;
 }
 

@@ -2,8 +2,10 @@
 // small cloth on it with the collider installed, and checks the precision define matches the installed package.
 #include "bodyfit/bridge/btBodyFitToBullet.h"
 #include "bodyfit/bridge/btEigenConversion.h"
+#include "bodyfit/bridge/btSkinnedBodyDriver.h"
 #include "bodyfit/drape/effects.h"
 #include "bodyfit/drape/garment.h"
+#include "bodyfit/drape/gltf_animation.h"
 #include "bodyfit/drape/scene.h"
 #include "bodyfit/drape/simulation.h"
 #include "bodyfit/drape/stability.h"

@@ -30,6 +30,7 @@ struct EffectCounters
 	long long selfCollisionImpulses = 0;
 	long long pinSubsteps = 0;        ///< substeps in which body-attached pins were moved
 	long long bodyMotionSubsteps = 0; ///< substeps in which the kinematic body pose was set
+	long long animationSubsteps = 0;  ///< substeps in which an animated body was posed and its shape written
 };
 
 /// Keyframed rigid motion: p' = pivot + R(t) (p - pivot) + T(t), translation lerped and rotation slerped between

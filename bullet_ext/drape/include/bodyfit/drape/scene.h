@@ -45,15 +45,31 @@ const char* toString(ColliderKind kind);
 /// \throws FormatError (message "collider kind 'x' ...") for an unknown name.
 ColliderKind colliderKindFromString(const std::string& name);
 
+constexpr double kMaxAnimationSpeed = 10.0;    ///< body.animation.speed: clip seconds per simulated second
+
+/// An animated body (body.animation): a rigged file (glTF/GLB, FBX, ...; bodyfit/fitting/rig.h) and one of its
+/// clips. The body is the rig's skinned mesh; its ellipsoids are the bind-pose fit (body.ellipsoids: a fit file with
+/// a "skinning" section from `bodyfit-fit RIG.glb`, or fitted at load with body.fit / the defaults) bound to the
+/// bones, updated at every substep (bodyfit/bridge/btSkinnedBodyDriver.h).
+struct AnimationSpec
+{
+	std::string file;        ///< the rig (absolute path after parsing)
+	std::string clip = "0";  ///< clip name, or its index in decimal (JSON: a string or an integer); default the first
+	double speed = 1.0;      ///< (0, kMaxAnimationSpeed]
+	bool loop = true;        ///< wrap at the clip's end (false: hold the last pose)
+	double startS = 0.0;     ///< clip time at simulation time 0 (checked against the clip's duration at load)
+};
+
 struct BodySpec
 {
-	std::string mesh;                 ///< body mesh (absolute path after parsing)
+	std::string mesh;                 ///< body mesh (absolute path after parsing); the rig file when animated
 	std::string ellipsoids;           ///< fitted ellipsoid JSON (absolute), empty when `fit` is given instead
 	/// Fit parameters when no ellipsoid file is given: mu_torso, mu_limbs (fractions of the body height, metres with
 	/// "absolute": true), max_ellipsoids; run through the fit pipeline (fitting/include/bodyfit/fitting/fit_pipeline.h).
 	std::optional<nlohmann::json> fit;
 	UpAxis up = UpAxis::Y;
 	double scale = 1.0;
+	std::optional<AnimationSpec> animation; ///< body.animation; then `mesh` is not given (it is the rig's)
 };
 
 struct ColliderSpec

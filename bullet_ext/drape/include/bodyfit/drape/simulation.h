@@ -8,7 +8,10 @@
 #include "bodyfit/drape/garment.h"
 #include "bodyfit/drape/scene.h"
 
+#include "bodyfit/bridge/btSkinnedBodyDriver.h"
 #include "bodyfit/fitting/ellipsoid.h"
+#include "bodyfit/fitting/rig.h"
+#include "bodyfit/fitting/skinned_fit.h"
 #include "bodyfit/fitting/types.h"
 #include "bodyfit/bullet_ext/btFloatRange.h"
 #include "bodyfit/metrics/cloth_metrics.h"
@@ -27,6 +30,17 @@ class btEllipsoidClothCollider;
 namespace bodyfit::drape
 {
 
+/// An animated body as loaded (scene body.animation): the rig, its bind-pose fit, the bindings and the clip.
+struct AnimatedBodyData
+{
+	std::shared_ptr<const Rig> rig;
+	BodyFit fit;                                ///< the bind-pose fit (read from the fit file or fitted at load)
+	std::shared_ptr<const SkinBinding> binding; ///< the fit file's skinning section, or bindSkin at load
+	int clip = 0;                               ///< index into rig->clips
+	AnimationTiming timing;
+	const AnimationClip& animationClip() const { return rig->clips[std::size_t(clip)]; }
+};
+
 /// The body as loaded: the whole repaired mesh (every component; inside tests and pictures use it) and the
 /// ellipsoids (empty for mesh-bvh / none scenes without a fit), both in the body frame (= world frame at t = 0).
 struct BodyData
@@ -41,9 +55,15 @@ struct BodyData
 	/// What loading the body mesh found: several meshes joined or props left out of the fit, coordinates coarse in
 	/// assimp's float (bodyfit::MeshReport::warnings). In the metrics JSON as "load_warnings".
 	std::vector<std::string> loadWarnings;
+	/// Set for an animated body: then `mesh` is the rig's bind mesh (repaired, the skinning's vertex order) and
+	/// `ellipsoids` the bind-pose fit; the simulation poses both at every substep.
+	std::shared_ptr<const AnimatedBodyData> animation;
 };
 
 /// Loads the body as the scene says; the overrides replace scene.body.mesh / scene.body.ellipsoids when not empty.
+/// An animated scene loads the rig and its clip; its fit is the scene's (or overriding) fit file, which must carry a
+/// skinning section that checkBinding accepts for the rig, or else the bind mesh is fitted (body.fit or the
+/// defaults) and bound (bindSkin); a mesh override is refused (the body is the rig's skinned mesh).
 /// With a mesh override and no ellipsoid override, the scene's fit file is used only if its recorded source (mesh
 /// file name and vertex count) is that mesh; otherwise the mesh is fitted (the scene's "fit" options or the
 /// defaults) and the reason is the first of fitWarnings. A mesh garment of a scene whose body was overridden by
@@ -60,6 +80,11 @@ struct StepStats
 	double cpuSeconds = 0.0;          ///< thread CPU time of the whole step
 	double collisionCpuSeconds = 0.0; ///< thread CPU time of collisionSeconds' phases
 	double colliderCpuSeconds = 0.0;  ///< thread CPU time of the ellipsoid collider alone
+	/// Animated body (wall time, every substep of the step): posing + skinning + ellipsoid update, and writing the
+	/// result into the body's shape (the compound's ellipsoids, or the triangle mesh with its tree refit and
+	/// Bullet's cached triangle prisms and sparse-SDF cells dropped). 0 for a body that does not deform.
+	double bodySkinSeconds = 0.0;
+	double bodyWriteSeconds = 0.0;
 };
 
 /// Cloth-quality numbers at one instant (inside counts, depth, zeta, NaN nodes).
@@ -97,9 +122,11 @@ public:
 
 	/// Current body pose (body frame -> world).
 	Eigen::Isometry3d bodyPose() const;
+	/// The skinned-body driver of an animated body (null otherwise).
+	const btSkinnedBodyDriver* skinnedDriver() const;
 	/// Cloth nodes (world), as a mesh with the garment's faces.
 	TriMesh clothMesh() const;
-	/// Body mesh / ellipsoids at the current pose (world).
+	/// Body mesh / ellipsoids at the current pose (world); an animated body's skinned mesh and its ellipsoids now.
 	TriMesh bodyMeshWorld() const;
 	std::vector<Ellipsoid> ellipsoidsWorld() const;
 
@@ -114,6 +141,8 @@ public:
 	std::vector<double> skinDistances(const std::vector<int>& nodes) const;
 	/// Contact nodes and their gap to the skin now.
 	metrics::ContactMetrics contacts() const;
+	/// Cloth links crossing the body skin now (both ends outside, the segment through the mesh).
+	metrics::EdgeCrossings edgeCrossings() const;
 	/// Sparse-SDF cells currently cached by Bullet (0 for the ellipsoid collider, which needs none).
 	int sdfCells() const;
 
@@ -123,6 +152,8 @@ private:
 	/// The float-range check of the whole scene (checkFloatRange): refuse (when asked) or record a warning.
 	void checkFarFromOrigin(bool refuseFarFromOrigin);
 	void buildEffects();
+	/// Animated body: the driver writing the body's shape, its per-substep effect first in the effect list.
+	void buildSkinnedDriver();
 
 	struct Impl;
 	std::unique_ptr<Impl> impl_;

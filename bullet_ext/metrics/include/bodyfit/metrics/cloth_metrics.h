@@ -26,6 +26,7 @@
 
 #include <limits>
 #include <memory>
+#include <optional>
 #include <vector>
 
 class btSoftBody;
@@ -51,6 +52,13 @@ public:
 	void setPose(const btTransform& bodyToWorld);
 	const btTransform& pose() const { return pose_; }
 
+	/// The body deformed (a skinned body at another instant): new positions for the mesh's vertices (same rows,
+	/// same faces) and the ellipsoids of that instant; rebuilds the inside test now and the distance grid at the
+	/// next distance query (each O(faces), milliseconds for a 27k-triangle body): call it when the body has
+	/// changed, not per query.
+	/// \throws InvalidInputError for another vertex count, non-finite coordinates or an invalid ellipsoid.
+	void setShape(const Eigen::MatrixX3d& vertices, std::vector<Ellipsoid> ellipsoids);
+
 	const TriMesh& mesh() const { return mesh_; }
 	const std::vector<Ellipsoid>& ellipsoids() const { return ellipsoids_; }
 
@@ -63,7 +71,7 @@ public:
 	/// Signed distance from a body-frame point to the skin mesh (negative inside).
 	double signedSkinDistance(const Eigen::Vector3d& bodyPoint) const;
 	/// Unsigned distance from a body-frame point to the skin mesh.
-	double skinDistance(const Eigen::Vector3d& bodyPoint) const { return distance_.distance(bodyPoint); }
+	double skinDistance(const Eigen::Vector3d& bodyPoint) const { return distanceGrid().distance(bodyPoint); }
 	/// Parameters t in [0, 1] where the body-frame segment a + t (b - a) meets the mesh, ascending (a hit on an edge or
 	/// vertex shared by several triangles is listed once: hits closer than 1e-9 in t are merged).
 	std::vector<double> segmentHits(const Eigen::Vector3d& a, const Eigen::Vector3d& b) const;
@@ -75,8 +83,11 @@ private:
 	btTransform pose_;
 	Eigen::Isometry3d worldToBody_ = Eigen::Isometry3d::Identity();
 	MeshInsideTest inside_;
-	MeshDistanceGrid distance_;
-	std::shared_ptr<const TriangleGrid> triangles_; ///< uniform grid of the triangles' boxes (segmentHits)
+	/// Built with the reference; after setShape, at the first query that needs them (samples that only count nodes
+	/// inside do not pay for them).
+	mutable std::optional<MeshDistanceGrid> distance_;
+	mutable std::shared_ptr<const TriangleGrid> triangles_; ///< uniform grid of the triangles' boxes (segmentHits)
+	const MeshDistanceGrid& distanceGrid() const;
 };
 
 /// Penetration and validity counts at one instant.

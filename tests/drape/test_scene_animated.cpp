@@ -1,0 +1,424 @@
+// Animated bodies in scenes (body.animation): the scene keys and their one-line errors, loading the rig and its
+// fit (fitted at load or read from a fit file with a skinning section), the skinned-body driver writing Bullet
+// shapes, and short runs of the bundled animated scenes (and a faster clip) with 0 cloth nodes inside the skinned
+// body mesh at every sample (every 5 steps).
+#include "bodyfit/drape/scene.h"
+#include "bodyfit/drape/simulation.h"
+#include "support/paths.h"
+
+#include "bodyfit/bridge/btBodyFitToBullet.h"
+#include "bodyfit/bridge/btSkinnedBodyDriver.h"
+#include "bodyfit/fitting/ellipsoid_io.h"
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/metrics/cloth_metrics.h"
+
+#include <BulletCollision/CollisionShapes/btBvhTriangleMeshShape.h>
+#include <BulletSoftBody/btSoftBody.h>
+
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+
+using namespace bodyfit::drape;
+using nlohmann::json;
+
+namespace
+{
+
+const std::string kWalkSkirt = std::string(BODYFIT_SCENE_DIR) + "/animated_walk_skirt.json";
+const std::string kRig = bodyfit_test::assetPath("animated/female_young.animated.glb");
+
+/// The walk-skirt scene as a document whose animation object can be edited (paths made absolute).
+json walkSkirtDocument()
+{
+	json j = {{"body", {{"animation", {{"file", kRig}, {"clip", "walk"}, {"speed", 1.0}, {"loop", true},
+									   {"start_s", 0.0}}}}},
+			  {"collider", {{"kind", "ellipsoids"}}},
+			  {"garment", {{"type", "skirt"}, {"mesh", bodyfit_test::assetPath("female_young.skirt.obj")}}}};
+	return j;
+}
+
+std::string parseError(const json& j)
+{
+	try
+	{
+		parseScene(j, std::string(BODYFIT_SCENE_DIR) + "/test_animated.json");
+	}
+	catch (const bodyfit::FormatError& e)
+	{
+		return e.what();
+	}
+	return "";
+}
+
+/// Loading the body of a scene: the one-line error, or "" when it loaded.
+std::string loadError(const Scene& scene, const std::string& meshOverride = "", const std::string& fitOverride = "")
+{
+	try
+	{
+		loadBody(scene, meshOverride, fitOverride);
+	}
+	catch (const std::exception& e)
+	{
+		return e.what();
+	}
+	return "";
+}
+
+/// The largest count of cloth nodes inside the skinned body mesh over samples every 5 steps of `steps` steps.
+struct AnimatedRun
+{
+	int maxInside = -1;
+	int samples = 0;
+	int nan = 0;
+	double maxEllipsoidDepth = 0.0;
+	double lastClipTime = 0.0;
+};
+
+AnimatedRun runAnimated(Scene scene, int steps)
+{
+	scene.sampleEvery = 5;
+	const BodyData body = loadBody(scene);
+	DrapeSimulation sim(scene, body);
+	AnimatedRun r;
+	for (int k = 1; k <= steps; ++k)
+	{
+		sim.step();
+		if (k % 5 == 0 || k == steps)
+		{
+			const ClothSample s = sim.sample();
+			r.maxInside = std::max(r.maxInside, s.insideBody);
+			r.nan = std::max(r.nan, s.nanNodes);
+			r.maxEllipsoidDepth = std::max(r.maxEllipsoidDepth, s.maxEllipsoidDepth);
+			++r.samples;
+		}
+	}
+	r.lastClipTime = sim.skinnedDriver()->clipTime();
+	return r;
+}
+
+} // namespace
+
+TEST_CASE("animation timing: speed, start, loop and clamp", "[animation]")
+{
+	bodyfit::AnimationTiming t;
+	t.speed = 2.0;
+	t.startS = 0.5;
+	// 0.5 + 2 * 1.0 = 2.5 s, wrapped into a 2 s clip: 0.5 s (exact in binary, so == is the right test).
+	CHECK(t.clipTime(1.0, 2.0) == 0.5);
+	CHECK(t.clipTime(0.0, 2.0) == 0.5);
+	t.loop = false;
+	CHECK(t.clipTime(1.0, 2.0) == 2.0); // held at the end
+	CHECK(t.clipTime(0.25, 2.0) == 1.0);
+}
+
+TEST_CASE("body.animation parses and every bad key, type or value is a one-line error naming it", "[animation][scene]")
+{
+	const Scene s = parseScene(walkSkirtDocument(), std::string(BODYFIT_SCENE_DIR) + "/test_animated.json");
+	REQUIRE(s.body.animation);
+	CHECK(s.body.animation->clip == "walk");
+	CHECK(s.body.mesh == s.body.animation->file); // the body mesh is the rig's
+
+	json byIndex = walkSkirtDocument();
+	byIndex["body"]["animation"]["clip"] = 1;
+	CHECK(parseScene(byIndex, kWalkSkirt).body.animation->clip == "1");
+
+	struct Case
+	{
+		std::string key;
+		json value;
+		std::string expected;
+	};
+	const std::vector<Case> cases = {
+		{"file", "no_such_rig.glb", "body.animation.file: file"},
+		{"file", 3, "body.animation.file: expected a string"},
+		{"clip", "", "body.animation.clip: empty clip name"},
+		{"clip", -1, "body.animation.clip: value -1 is outside"},
+		{"clip", 1.5, "body.animation.clip: expected an integer"},
+		{"clip", json::array(), "body.animation.clip: expected a clip name or index"},
+		{"speed", 0.0, "body.animation.speed: value 0 is outside (0, 10]"},
+		{"speed", 11.0, "body.animation.speed: value 11 is outside"},
+		{"speed", "fast", "body.animation.speed: expected a number"},
+		{"loop", 1, "body.animation.loop: expected true or false"},
+		{"start_s", -0.5, "body.animation.start_s: value -0.5 is outside"},
+		{"start_s", "0", "body.animation.start_s: expected a number"},
+		{"tempo", 1, "body.animation.tempo: unknown key"},
+	};
+	for (const Case& c : cases)
+	{
+		json j = walkSkirtDocument();
+		j["body"]["animation"][c.key] = c.value;
+		INFO(c.key << " = " << c.value.dump());
+		CHECK_THAT(parseError(j), Catch::Contains(c.expected));
+	}
+	json notObject = walkSkirtDocument();
+	notObject["body"]["animation"] = "walk";
+	CHECK_THAT(parseError(notObject), Catch::Contains("body.animation: expected an object"));
+	json noFile = walkSkirtDocument();
+	noFile["body"]["animation"].erase("file");
+	CHECK_THAT(parseError(noFile), Catch::Contains("body.animation.file: required key is missing"));
+	json withMesh = walkSkirtDocument();
+	withMesh["body"]["mesh"] = bodyfit_test::assetPath("female_young.obj");
+	CHECK_THAT(parseError(withMesh), Catch::Contains("body.mesh: an animated body is the skinned mesh"));
+	json withMotion = walkSkirtDocument();
+	withMotion["effects"] = json::array({{{"type", "body_motion"}, {"keyframes", {{{"t", 0.0}}}}}});
+	CHECK_THAT(parseError(withMotion), Catch::Contains("effects: body_motion moves a rigid body"));
+}
+
+TEST_CASE("loading an animated body: the clip and start are checked against the rig, the fit against its bones",
+		  "[animation][scene]")
+{
+	Scene scene = loadScene(kWalkSkirt);
+	scene.body.animation->clip = "moonwalk";
+	CHECK_THAT(loadError(scene), Catch::Contains("body.animation.clip: ") && Catch::Contains("moonwalk"));
+	scene.body.animation->clip = "walk";
+	scene.body.animation->startS = 5.0; // the walk is 4.3 s
+	CHECK_THAT(loadError(scene), Catch::Contains("body.animation.start_s: 5 s is past the end of clip 'walk'"));
+	scene.body.animation->startS = 0.0;
+	CHECK_THAT(loadError(scene, bodyfit_test::assetPath("female_young.obj")),
+			   Catch::Contains("--body: the scene's body is animated"));
+	// A static fit (no skinning section) cannot follow the bones.
+	CHECK_THAT(loadError(scene, "", bodyfit_test::assetPath("fits/female_young.json")),
+			   Catch::Contains("female_young.json: skinning: missing"));
+
+	const BodyData body = loadBody(scene);
+	REQUIRE(body.animation);
+	CHECK(body.animation->animationClip().name == "walk");
+	CHECK(body.mesh.vertexCount() == body.animation->rig->bindMesh.vertexCount());
+	for (const ColliderKind refused : {ColliderKind::ConvexHullCompound, ColliderKind::EllipsoidsSdf})
+	{
+		Scene other = scene;
+		other.collider.kind = refused;
+		CHECK_THROWS_WITH(DrapeSimulation(other, body), Catch::Contains("cannot follow an animated body"));
+	}
+}
+
+TEST_CASE("an animated body from a fit file with a skinning section follows the same bones", "[animation][scene]")
+{
+	Scene scene = loadScene(kWalkSkirt);
+	const BodyData fitted = loadBody(scene); // fitted at load
+	bodyfit::BodyFit fit = fitted.animation->fit;
+	fit.skinning = fitted.animation->binding;
+	const std::string path = (std::filesystem::temp_directory_path() / "bodyfit_animated_fit.json").string();
+	bodyfit::writeEllipsoidJson(path, fit);
+	scene.body.ellipsoids = path;
+	const BodyData read = loadBody(scene);
+	REQUIRE(read.animation);
+	CHECK(read.ellipsoidSource == path);
+	REQUIRE(read.ellipsoids.size() == fitted.ellipsoids.size());
+	// The fit file round-trips doubles bit for bit (ellipsoid_io.h), so the two bodies pose identically.
+	DrapeSimulation a(scene, read), b(loadScene(kWalkSkirt), fitted);
+	for (int k = 0; k < 12; ++k)
+	{
+		a.step();
+		b.step();
+	}
+	const std::vector<bodyfit::Ellipsoid> ea = a.ellipsoidsWorld(), eb = b.ellipsoidsWorld();
+	for (std::size_t i = 0; i < ea.size(); ++i)
+		CHECK((ea[i].center - eb[i].center).norm() == 0.0);
+	// The same fit file on another rig (male_young: other mesh size and bones) is refused, naming the section.
+	Scene other = scene;
+	other.body.animation->file = bodyfit_test::assetPath("animated/male_young.animated.glb");
+	CHECK_THAT(loadError(other), Catch::Contains("bodyfit_animated_fit.json: skinning."));
+	std::filesystem::remove(path);
+}
+
+TEST_CASE("the driver writes the posed ellipsoids into the compound and the skinned vertices into the mesh",
+		  "[animation][driver]")
+{
+	const Scene scene = loadScene(kWalkSkirt);
+	const BodyData body = loadBody(scene);
+	const AnimatedBodyData& a = *body.animation;
+	bodyfit::btSkinnedBodyDriver driver(*a.rig, a.fit, *a.binding, a.animationClip(), a.timing);
+	auto compound = bodyfit::createEllipsoidCompound(body.ellipsoids);
+	bodyfit::btRefitTriangleMesh mesh(body.mesh, 0.0);
+	driver.setCompound(compound.get());
+	driver.setMesh(&mesh);
+	const int revision = compound->getAnalyticRevision();
+	driver.update(1.2); // mid-stride
+	CHECK(compound->getAnalyticRevision() > revision);
+	CHECK(driver.clipTime() == Approx(1.2).margin(1e-12));
+	const std::vector<bodyfit::Ellipsoid> written = bodyfit::toEllipsoids(*compound);
+	REQUIRE(written.size() == driver.body().ellipsoids().size());
+	double worst = 0.0;
+	for (std::size_t i = 0; i < written.size(); ++i)
+	{
+		worst = std::max(worst, (written[i].center - driver.body().ellipsoids()[i].center).norm());
+		// Semi-axes stored in float (btScalar): relative rounding 6e-8, times a few operations.
+		CHECK(written[i].radii.x() == Approx(driver.body().ellipsoids()[i].radii.x()).epsilon(1e-6));
+	}
+	CHECK(worst < 1e-6); // centres about 1 m from the origin in float: ulp 1.2e-7 m
+	// The refitted mesh's bounds are the skinned vertices' bounds (refitTree recomputes the local AABB); the
+	// shape's AABB adds its margin (0 here) and Bullet's quantisation padding, well under a millimetre.
+	btVector3 lo, hi;
+	mesh.shape()->getAabb(btTransform::getIdentity(), lo, hi);
+	const Eigen::Vector3d vlo = driver.body().vertices().colwise().minCoeff().transpose();
+	const Eigen::Vector3d vhi = driver.body().vertices().colwise().maxCoeff().transpose();
+	for (int k = 0; k < 3; ++k)
+	{
+		CHECK(double(lo[k]) == Approx(vlo[k]).margin(1e-3));
+		CHECK(double(hi[k]) == Approx(vhi[k]).margin(1e-3));
+	}
+	// The walk moves the feet by decimetres at 1.2 s: the mesh is really the posed one, not the bind pose.
+	CHECK((driver.body().vertices() - body.mesh.V).rowwise().norm().maxCoeff() > 0.05);
+	CHECK(driver.stats().updates == 1);
+	driver.update(1.2); // same time: nothing to do
+	CHECK(driver.stats().updates == 1);
+
+	auto small = bodyfit::createEllipsoidCompound({body.ellipsoids.front()});
+	CHECK_THROWS_WITH(driver.setCompound(small.get()), Catch::Contains("the compound has 1 ellipsoids"));
+	bodyfit::AnimationTiming bad = a.timing;
+	bad.speed = 0.0;
+	CHECK_THROWS_WITH(bodyfit::btSkinnedBodyDriver(*a.rig, a.fit, *a.binding, a.animationClip(), bad),
+					  Catch::Contains("speed must be a finite number > 0"));
+	bad = a.timing;
+	bad.startS = 10.0;
+	CHECK_THROWS_WITH(bodyfit::btSkinnedBodyDriver(*a.rig, a.fit, *a.binding, a.animationClip(), bad),
+					  Catch::Contains("outside clip 'walk'"));
+}
+
+TEST_CASE("the metrics measure against the skinned mesh of the instant", "[animation][scene]")
+{
+	Scene scene = loadScene(kWalkSkirt);
+	const BodyData body = loadBody(scene);
+	DrapeSimulation sim(scene, body);
+	for (int k = 0; k < 150; ++k) // 1.25 s: mid-stride
+		sim.step();
+	const bodyfit::TriMesh skinned = sim.bodyMeshWorld();
+	const Eigen::VectorXd moved = (skinned.V - body.mesh.V).rowwise().norm();
+	Eigen::Index foot = 0;
+	CHECK(moved.maxCoeff(&foot) > 0.05); // the legs moved by decimetres
+	// A point 3 mm under the skin of the vertex that moved most (area-weighted vertex normal of the skinned mesh)
+	// is inside the skinned body, and outside the bind-pose body (the vertex moved > 5 cm).
+	Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+	for (int f = 0; f < skinned.F.rows(); ++f)
+		for (int k = 0; k < 3; ++k)
+			if (skinned.F(f, k) == int(foot))
+			{
+				const Eigen::Vector3d a = skinned.V.row(skinned.F(f, 0)), b = skinned.V.row(skinned.F(f, 1)),
+									  c = skinned.V.row(skinned.F(f, 2));
+				normal += (b - a).cross(c - a);
+			}
+	const Eigen::Vector3d inward = Eigen::Vector3d(skinned.V.row(foot)) - 0.003 * normal.normalized();
+	sim.cloth()->m_nodes[0].m_x = btVector3(btScalar(inward.x()), btScalar(inward.y()), btScalar(inward.z()));
+	CHECK(bodyfit::metrics::BodyReference(body.mesh).signedSkinDistance(inward) > 0.0);
+	CHECK(sim.skinDistances({0}).front() < 0.0);
+}
+
+TEST_CASE("bundled animated scenes: 0 nodes inside the skinned body at every sample (short versions)",
+		  "[animation][scene][runs]")
+{
+	// The short versions cover the clips' first motion; the full lengths run in bodyfit-drape and
+	// `bodyfit-bench animated` (README, animated bodies).
+	struct Case
+	{
+		std::string file;
+		int steps;
+	};
+	for (const Case& c : {Case{"animated_walk_skirt.json", 90}, Case{"animated_walk_tights.json", 60},
+						  Case{"animated_shoulders_arms_raise.json", 90}})
+	{
+		INFO(c.file);
+		const AnimatedRun r = runAnimated(loadScene(std::string(BODYFIT_SCENE_DIR) + "/" + c.file), c.steps);
+		CHECK(r.samples == c.steps / 5);
+		CHECK(r.maxInside == 0);
+		CHECK(r.nan == 0);
+		CHECK(r.maxEllipsoidDepth < 1e-6); // float rounding of positions about 1 m from the origin (ulp 1.2e-7 m)
+	}
+}
+
+TEST_CASE("a fast clip: the walk at 3x speed keeps 0 nodes inside the skinned body", "[animation][scene][runs]")
+{
+	Scene scene = loadScene(kWalkSkirt);
+	scene.body.animation->speed = 3.0;
+	scene.body.animation->loop = true;
+	const AnimatedRun r = runAnimated(scene, 120); // 1 s simulated = 3 s of the walk
+	CHECK(r.lastClipTime == Approx(3.0).margin(1e-9));
+	CHECK(r.maxInside == 0);
+	CHECK(r.nan == 0);
+	CHECK(r.maxEllipsoidDepth < 1e-6);
+}
+
+TEST_CASE("another body: male_young's skirt on its own rig, the walk at 2x from mid-clip, looping",
+		  "[animation][scene][runs]")
+{
+	Scene scene = loadScene(kWalkSkirt);
+	scene.body.animation->file = bodyfit_test::assetPath("animated/male_young.animated.glb");
+	scene.body.mesh = scene.body.animation->file;
+	scene.garment.mesh = bodyfit_test::assetPath("male_young.skirt.obj");
+	scene.body.animation->speed = 2.0;
+	scene.body.animation->startS = 1.0;
+	scene.body.animation->loop = true;
+	const AnimatedRun r = runAnimated(scene, 80); // 2/3 s simulated: clip 1.0 -> 2.33 s
+	CHECK(r.lastClipTime == Approx(1.0 + 2.0 * 80.0 / 120.0).margin(1e-9));
+	CHECK(r.maxInside == 0);
+	CHECK(r.nan == 0);
+	CHECK(r.maxEllipsoidDepth < 1e-6);
+}
+
+namespace
+{
+
+/// A fast, deep test clip: the thighs swing +-60 degrees about their own x axes, in opposite phase, a new key every
+/// 0.2 s (300 deg/s at the middle of a swing; the bundled walk swings them about +-25 degrees in 0.5 s).
+bodyfit::AnimationClip kickClip(const bodyfit::Rig& rig)
+{
+	bodyfit::AnimationClip clip;
+	clip.name = "kick";
+	clip.duration = 1.6;
+	clip.ticksPerSecond = 1000.0;
+	const std::vector<double> swing = {0.0, 60.0, 0.0, -60.0, 0.0, 60.0, 0.0, -60.0, 0.0};
+	for (const std::string& name : {"upperleg01.L", "upperleg01.R"})
+	{
+		bodyfit::BoneChannel ch;
+		for (int b = 0; b < rig.boneCount(); ++b)
+			if (rig.bones[std::size_t(b)].name == name)
+				ch.bone = b;
+		REQUIRE(ch.bone >= 0);
+		const double side = name.back() == 'L' ? 1.0 : -1.0;
+		const Eigen::Quaterniond rest(rig.bones[std::size_t(ch.bone)].restLocal.rotation());
+		for (std::size_t k = 0; k < swing.size(); ++k)
+		{
+			ch.rotationTimes.push_back(0.2 * double(k));
+			ch.rotations.push_back(rest * Eigen::Quaterniond(Eigen::AngleAxisd(side * swing[k] * M_PI / 180.0,
+																		 Eigen::Vector3d::UnitX())));
+		}
+		clip.channels.push_back(ch);
+	}
+	return clip;
+}
+
+} // namespace
+
+TEST_CASE("a faster, deeper clip than the bundled ones: the skirt under +-60 degree kicks", "[animation][scene][runs]")
+{
+	Scene scene = loadScene(kWalkSkirt);
+	scene.sampleEvery = 5;
+	BodyData body = loadBody(scene);
+	auto kicking = std::make_shared<AnimatedBodyData>(*body.animation);
+	auto rig = std::make_shared<bodyfit::Rig>(*kicking->rig);
+	rig->clips.push_back(kickClip(*rig));
+	kicking->clip = int(rig->clips.size()) - 1;
+	kicking->rig = rig;
+	body.animation = kicking;
+	DrapeSimulation sim(scene, body);
+	int maxInside = 0, nan = 0;
+	double maxDepth = 0.0, maxKneeTravel = 0.0;
+	const bodyfit::TriMesh bind = sim.bodyMeshWorld();
+	for (int k = 1; k <= 192; ++k) // the whole 1.6 s clip
+	{
+		sim.step();
+		if (k % 5 == 0)
+		{
+			const ClothSample s = sim.sample();
+			maxInside = std::max(maxInside, s.insideBody);
+			nan = std::max(nan, s.nanNodes);
+			maxDepth = std::max(maxDepth, s.maxEllipsoidDepth);
+			maxKneeTravel = std::max(maxKneeTravel, (sim.bodyMeshWorld().V - bind.V).rowwise().norm().maxCoeff());
+		}
+	}
+	CHECK(maxKneeTravel > 0.4); // the clip is deep: a foot swings by more than 40 cm
+	CHECK(maxInside == 0);
+	CHECK(nan == 0);
+	CHECK(maxDepth < 1e-6);
+}
