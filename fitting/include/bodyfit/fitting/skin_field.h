@@ -1,0 +1,130 @@
+#pragma once
+/// \file skin_field.h
+/// The tight skin surface of a body (issue 14): a narrow-band signed distance field of the body mesh, baked once per
+/// body at fit time, so that cloth contact can be decided against the real skin while the union of ellipsoids stays
+/// the conservative bound and the broad phase (every MVEE encloses its cluster, so the union stands 11-15 mm off the
+/// skin on average).
+///
+/// Layout (shared with the Bullet-side field class; keep to it exactly). BODY frame (the frame of the mesh and of the
+/// fit's ellipsoids; metres, +y up). Positive outside the skin, negative inside.
+///  - Grid: origin o, voxel size h, brick edge B = 8 voxels, brick dimensions (nx, ny, nz). Brick (i, j, k) covers the
+///    box [o + B h (i, j, k), o + B h (i+1, j+1, k+1)].
+///  - brickIndex: nx*ny*nz int32, brick (i, j, k) at i + nx*(j + ny*k). s >= 0: the brick's samples are block s of
+///    `samples`; kFarOutside (-1): every point of the brick is at signed distance >= +clamp (or the brick lies
+///    entirely outside the ellipsoid union grown by skinOffset + 2h, where the union already bounds the skin);
+///    kFarInside (-2): every point is at <= -clamp. Points outside the whole grid are far outside.
+///  - samples: per stored brick (B+1)^3 int16 at the brick's lattice points (a, b, c) in [0, B]^3, index
+///    a + (B+1)*(b + (B+1)*c), point o + h*(B*(i,j,k) + (a,b,c)). Signed distance = value * quantum, clamped to
+///    [-clamp, +clamp]; quantum = clamp / 32767. A lattice point shared by neighbouring bricks has the same value in
+///    every copy, so the field is continuous across brick faces.
+///  - The field at a point = trilinear interpolation of the 8 lattice samples of its cell in its brick (the brick is
+///    floor((p - o) / (B h)) per axis, clamped to the grid, so a point on a shared face reads the brick above it;
+///    both copies agree there).
+///
+/// The bake (bakeSkinField):
+///  1. Bricks: a brick is "near" when its box is within `clamp` of the bounding box of some triangle (so every brick
+///     holding a point with |d| < clamp is near). Near bricks that meet the ellipsoid union grown by skinOffset + 2h
+///     (tested conservatively from the brick's centre and half-diagonal), and every brick holding a skin sample of
+///     step 4, are stored.
+///  2. Exact distances: each triangle visits the lattice points of its bounding box grown by `clamp`, skipping along
+///     each lattice row the points whose distance to the triangle's plane is >= clamp, and keeps per point the
+///     nearest triangle distance (computed in the triangle's plane frame: 2D closest point on the triangle, then
+///     the out-of-plane offset). A point whose nearest distance is < clamp has its exact distance: its true nearest
+///     triangle is within clamp, so its grown box holds the point.
+///  3. Sign: for those points, the sign of (p - c) . N where c is the closest point and N the pseudo-normal of the
+///     nearest feature (Baerentzen and Aanaes, "Signed distance computation using the angle weighted
+///     pseudonormal", 2005): the face normal, the sum of the two face normals of an edge, the angle-weighted sum of
+///     the face normals at a vertex. It is exact for closed, consistently oriented (CCW = outward) meshes, which
+///     the load-and-repair step produces for the bundled bodies. Every other point (|d| >= clamp) only needs its
+///     sign: a flood fill over lattice points and unstored bricks from the grid border marks the outside; what it
+///     does not reach is grouped into connected regions, each taking the majority sign of the exact points that
+///     border it (a pocket of outside air enclosed by the band, e.g. under an arm, is thus not called inside).
+///     Two neighbouring points at |d| >= clamp > h, or such a point and a neighbour, cannot lie on the two sides
+///     of the skin, so the fill never crosses it.
+///  4. Conservative: the skin is sampled (every vertex, and on every triangle the barycentric lattice of
+///     skinSampleDivisions: points at most one voxel apart, at least the 7 non-corner points of thirds); wherever
+///     the interpolated field reads r > 0 the 8 lattice samples of that cell are lowered by the least change that
+///     brings it to 0 (corner i by w_i r / sum w^2, w the trilinear weights, rounded up to whole quanta). Lowering
+///     never raises another reading, so after one pass no skin sample reads > 0. Between samples the reading is not
+///     proven <= 0 (the interpolant is only Lipschitz): tests/fitting/test_skin_field.cpp measures the excess at
+///     random skin points (a few hundredths of a millimetre on smooth skin, more where the skin is thinner than a
+///     voxel: fingers, ears).
+///  5. maxError = the largest |field - true distance| at the points where the bake knows the true distance: every
+///     stored lattice point of the band (|d| < clamp) and every skin sample (d = 0). It includes the quantisation,
+///     the conservative lowering and, at the skin samples, the interpolation error.
+///
+/// Guarantees: field(p) <= 0 at every skin sample of step 4; field = true distance within maxError at the band's
+/// lattice points and the skin samples; the sign is exact wherever |field| >= clamp (the sign only); points outside
+/// the grid and in kFarOutside bricks read +clamp, in kFarInside bricks -clamp. Deterministic (no threads, a fixed
+/// traversal order).
+
+#include "bodyfit/fitting/ellipsoid.h"
+#include "bodyfit/fitting/types.h"
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace bodyfit
+{
+
+/// Bake parameters. \see validateSkinFieldOptions for the accepted ranges.
+struct SkinFieldOptions
+{
+	double voxel = 0.005;      ///< lattice spacing h (metres)
+	double clamp = 0.012;      ///< distances are accurate within |d| < clamp; beyond, only the sign (metres)
+	double skinOffset = 0.002; ///< the collider's skin offset: bricks meeting the union grown by this + 2h are kept
+};
+
+/// Brick index values that are not sample blocks.
+constexpr std::int32_t kFarOutside = -1;
+constexpr std::int32_t kFarInside = -2;
+/// Brick edge B in voxels, and lattice points per stored brick ((B+1)^3).
+constexpr int kSkinBrickEdge = 8;
+constexpr int kSkinBrickSamples = (kSkinBrickEdge + 1) * (kSkinBrickEdge + 1) * (kSkinBrickEdge + 1);
+/// Divisions n of the barycentric lattice (i, j, k) / n, i + j + k = n, that the conservative pass (step 4 above)
+/// samples on the triangle (a, b, c): ceil(longest edge / voxel), in [3, 64].
+int skinSampleDivisions(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double voxel);
+
+struct SkinField
+{
+	// The layout (see the file comment).
+	Eigen::Vector3d origin = Eigen::Vector3d::Zero(); ///< o (metres, body frame)
+	double voxel = 0.005;                             ///< h (metres)
+	double clamp = 0.012;                             ///< metres; quantum = clamp / 32767
+	int nx = 0, ny = 0, nz = 0;                       ///< brick dimensions of the grid
+	std::vector<std::int32_t> brickIndex;             ///< nx*ny*nz: block number, kFarOutside or kFarInside
+	std::vector<std::int16_t> samples;                ///< storedBricks() * kSkinBrickSamples
+
+	// What the bake used and measured.
+	double skinOffset = 0.002; ///< SkinFieldOptions::skinOffset of the bake (metres)
+	double maxError = 0.0;     ///< max |field - true distance| measured at bake time (metres; step 5 above)
+	int loweredSamples = 0;    ///< skin samples that read > 0 before the conservative pass (step 4)
+
+	double quantum() const { return clamp / 32767.0; }
+	int brickCount() const { return nx * ny * nz; }
+	int storedBricks() const { return int(samples.size() / std::size_t(kSkinBrickSamples)); }
+	/// Bytes held by the layout (index + samples + the header fields).
+	std::size_t bytes() const;
+	/// True when there is no grid (a default-constructed field).
+	bool empty() const { return brickIndex.empty(); }
+};
+
+/// \throws InvalidInputError naming the first bad option: voxel in [0.0005, 0.05] m, clamp in [2 voxel, 0.1] m (a
+/// cell's corners lie within sqrt(3) h of a point in it, so they carry real distances only if clamp > sqrt(3) h),
+/// skinOffset in [0, 0.1] m, all finite.
+void validateSkinFieldOptions(const SkinFieldOptions& options);
+
+/// Bakes the field of `mesh` (body frame; closed, CCW = outward) for a fit with `ellipsoids` (steps 1-5 above).
+/// \throws InvalidInputError for bad options, a mesh without faces, non-finite coordinates, bad indices, or a grid
+/// that would exceed kMaxSkinFieldBricks (a mesh not in metres).
+SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellipsoids,
+						const SkinFieldOptions& options = {});
+
+/// Limit on nx*ny*nz (a 2 m body at the finest voxel, 0.5 mm, needs ~1.6e6; 1.6e7 index entries are 64 MB).
+constexpr long long kMaxSkinFieldBricks = 16LL * 1024 * 1024;
+
+/// The field at p (metres, body frame): the reference the Bullet side must match. +clamp outside the grid.
+double sample(const SkinField& field, const Eigen::Vector3d& p);
+
+} // namespace bodyfit

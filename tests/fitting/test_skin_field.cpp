@@ -1,0 +1,357 @@
+// The skin field bake (fitting/include/bodyfit/fitting/skin_field.h): accuracy against an independent reference
+// (MeshDistanceGrid's exact unsigned distance, signed by MeshInsideTest's ray parity), the conservative guarantee,
+// the layout's invariants, and bad input.
+#include "bodyfit/fitting/skin_field.h"
+
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/fit_quality.h"
+#include "bodyfit/fitting/inside_test.h"
+#include "bodyfit/fitting/mesh_io.h"
+
+#include "support/mesh_shapes.h"
+#include "support/paths.h"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+using bodyfit::SkinField;
+using bodyfit::SkinFieldOptions;
+using bodyfit::TriMesh;
+
+namespace
+{
+
+double kBrick() { return double(bodyfit::kSkinBrickEdge); }
+
+/// Signed distance to the mesh by two methods independent of the bake: exact closest point, ray-parity inside test.
+class Reference
+{
+public:
+	explicit Reference(const TriMesh& mesh) : distance_(mesh), inside_(mesh) {}
+	double operator()(const Eigen::Vector3d& p) const
+	{
+		const double d = distance_.distance(p);
+		return inside_.isInside(p) ? -d : d;
+	}
+
+private:
+	bodyfit::MeshDistanceGrid distance_;
+	bodyfit::MeshInsideTest inside_;
+};
+
+/// A random point on the surface (area-weighted triangle, uniform barycentric) and that face's unit normal.
+struct SurfacePoint
+{
+	Eigen::Vector3d p, n;
+};
+
+SurfacePoint randomSurfacePoint(const TriMesh& mesh, std::mt19937& rng)
+{
+	std::vector<double> area(std::size_t(mesh.faceCount()));
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+		area[std::size_t(f)] = (b - a).cross(c - a).norm();
+	}
+	std::discrete_distribution<int> face(area.begin(), area.end());
+	std::uniform_real_distribution<double> u(0.0, 1.0);
+	const int f = face(rng);
+	double s = u(rng), t = u(rng);
+	if (s + t > 1.0)
+		s = 1.0 - s, t = 1.0 - t;
+	const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+	return {a + s * (b - a) + t * (c - a), (b - a).cross(c - a).normalized()};
+}
+
+/// Thin cylinder along y (radius r, half-length l) as a star-shaped UV mesh: in direction d the boundary is at
+/// min(r / |d_xz|, l / |d_y|).
+TriMesh thinCylinder(double r, double l)
+{
+	return bodyfit_test::starShape(
+		[r, l](const Eigen::Vector3d& d) {
+			const double xz = std::hypot(d.x(), d.z());
+			return std::min(xz > 1e-12 ? r / xz : 1e9, std::abs(d.y()) > 1e-12 ? l / std::abs(d.y()) : 1e9);
+		},
+		48, 96);
+}
+
+/// What the accuracy check measured over points on the surface offset along its normal by up to `band`.
+struct Accuracy
+{
+	double maxError = 0.0; ///< max |field - reference| over points with |reference| < band
+	double p99Error = 0.0;
+	double maxSkinReading = -1.0; ///< max field over the points on the surface (offset 0)
+	int points = 0;
+};
+
+Accuracy measureAccuracy(const TriMesh& mesh, const SkinField& field, int count, double band, unsigned seed)
+{
+	const Reference reference(mesh);
+	std::mt19937 rng(seed);
+	std::uniform_real_distribution<double> offset(-band, band);
+	std::vector<double> errors;
+	Accuracy a;
+	for (int i = 0; i < count; ++i)
+	{
+		const SurfacePoint s = randomSurfacePoint(mesh, rng);
+		a.maxSkinReading = std::max(a.maxSkinReading, bodyfit::sample(field, s.p));
+		const Eigen::Vector3d p = s.p + offset(rng) * s.n;
+		const double d = reference(p);
+		if (std::abs(d) >= band)
+			continue;
+		errors.push_back(std::abs(bodyfit::sample(field, p) - d));
+	}
+	std::sort(errors.begin(), errors.end());
+	a.points = int(errors.size());
+	a.maxError = errors.empty() ? 0.0 : errors.back();
+	a.p99Error = errors.empty() ? 0.0 : errors[std::size_t(0.99 * double(errors.size() - 1))];
+	return a;
+}
+
+/// The largest reading at the skin samples of the conservative pass (skin_field.h step 4): every vertex, and the
+/// barycentric lattice of skinSampleDivisions on every face.
+double maxReadingAtBakeSamples(const TriMesh& mesh, const SkinField& field)
+{
+	double worst = -1.0;
+	for (int v = 0; v < mesh.vertexCount(); ++v)
+		worst = std::max(worst, bodyfit::sample(field, mesh.V.row(v).transpose()));
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+		const int n = bodyfit::skinSampleDivisions(a, b, c, field.voxel);
+		for (int i = 0; i <= n; ++i)
+			for (int j = 0; i + j <= n; ++j)
+				if (i != n && j != n && i + j != 0) // the corners are the vertices above (the same point bit for bit)
+					worst = std::max(worst, bodyfit::sample(field, (double(i) * a + double(j) * b + double(n - i - j) * c) / double(n)));
+	}
+	return worst;
+}
+
+/// Number of points (uniform in the field's grid) whose field sign differs from the reference's where the reference
+/// is at least `margin` from the skin; `checked` gets how many were compared.
+int signMismatches(const TriMesh& mesh, const SkinField& field, int count, double margin, unsigned seed, int* checked)
+{
+	const Reference reference(mesh);
+	std::mt19937 rng(seed);
+	const Eigen::Vector3d size =
+		field.voxel * kBrick() * Eigen::Vector3d(double(field.nx), double(field.ny), double(field.nz));
+	std::uniform_real_distribution<double> u(0.0, 1.0);
+	int bad = 0;
+	*checked = 0;
+	for (int i = 0; i < count; ++i)
+	{
+		const Eigen::Vector3d p = field.origin + Eigen::Vector3d(u(rng), u(rng), u(rng)).cwiseProduct(size);
+		const double d = reference(p);
+		if (std::abs(d) < margin)
+			continue;
+		++*checked;
+		if ((bodyfit::sample(field, p) < 0.0) != (d < 0.0))
+			++bad;
+	}
+	return bad;
+}
+
+} // namespace
+
+TEST_CASE("skin field: within 1 mm of the true signed distance near a sphere, conservative on its skin", "[skin_field]")
+{
+	// Radius 0.1 m: the trilinear interpolation error of a distance field of curvature 1/R at voxel h is about
+	// h^2 / (4 R) = 0.06 mm, plus half a quantum, plus what the conservative pass takes off (of the same order).
+	const TriMesh sphere = bodyfit_test::uvSphere(0.1, 64, 32);
+	const SkinField field = bodyfit::bakeSkinField(sphere, {});
+	const Accuracy a = measureAccuracy(sphere, field, 4000, 0.005, 1u);
+	CAPTURE(a.maxError, a.p99Error, field.maxError, field.storedBricks());
+	REQUIRE(a.points > 3000);
+	CHECK(a.maxError < 0.001);
+	CHECK(field.maxError < 0.001);
+	CHECK(maxReadingAtBakeSamples(sphere, field) <= 0.0);
+	// Between the bake's samples the reading is not proven <= 0; on a smooth convex skin it stays within a quantum
+	// of it (the interpolant's excess over the skin varies by ~h^2/(8R) = 0.03 mm across a cell).
+	CHECK(a.maxSkinReading <= 0.0001);
+	CHECK(field.loweredSamples > 0); // a convex skin reads > 0 under trilinear interpolation: the pass did work
+}
+
+TEST_CASE("skin field: a box with sharp edges, a thin cylinder", "[skin_field]")
+{
+	// At a sharp edge or corner the distance field has a kink a 5 mm lattice cannot follow: a corner in the middle
+	// of a cell reads up to ~h/2 too high, and the conservative pass lowers that cell's corners by as much. A 2 mm
+	// voxel brings that below 1 mm (h/2 = 1 mm at most, and the cell's other points less).
+	SkinFieldOptions fine;
+	fine.voxel = 0.002;
+	fine.clamp = 0.008;
+	TriMesh shape;
+	unsigned seed = 0;
+	SECTION("box 0.2 m, 10 x 10 quads per side")
+	{
+		shape = bodyfit_test::subdividedCube(0.2, 10);
+		// Turned, so that its faces and edges cut the lattice's cells at every angle and offset.
+		const Eigen::Matrix3d turn = (Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitY()) *
+									  Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 0, 1).normalized()))
+										 .toRotationMatrix();
+		shape.V = (shape.V * turn.transpose()).eval();
+		seed = 2u;
+	}
+	SECTION("cylinder radius 1 cm, length 20 cm")
+	{
+		shape = thinCylinder(0.01, 0.1);
+		seed = 3u;
+	}
+	const SkinField field = bodyfit::bakeSkinField(shape, {}, fine);
+	const Accuracy a = measureAccuracy(shape, field, 4000, 0.005, seed);
+	CAPTURE(a.maxError, a.p99Error, field.maxError);
+	CHECK(a.maxError < 0.001);
+	CHECK(maxReadingAtBakeSamples(shape, field) <= 0.0);
+	// Between the samples (at most a voxel apart) the excess sits at the edges and rims; a quarter of a voxel bounds
+	// it (measured: below 0.02 mm).
+	CHECK(a.maxSkinReading <= 0.0005);
+}
+
+TEST_CASE("skin field: a decimated body against the reference", "[skin_field]")
+{
+	const TriMesh body = bodyfit::loadTriMesh(bodyfit_test::assetPath("male_young.4508v.obj")).mesh;
+	const SkinField field = bodyfit::bakeSkinField(body, {});
+	const Accuracy a = measureAccuracy(body, field, 6000, 0.005, 4u);
+	CAPTURE(a.maxError, a.p99Error, field.maxError, field.storedBricks(), field.bytes());
+	REQUIRE(a.points > 5000);
+	// Fingers, toes and ears are thinner than a 5 mm voxel resolves: there the trilinear field misses by up to a few
+	// millimetres (and the recorded maxError says so). Over the skin as a whole, 99% of the band is within 1 mm.
+	CHECK(a.p99Error < 0.001);
+	CHECK(a.maxError <= field.maxError + 0.002);
+	CHECK(maxReadingAtBakeSamples(body, field) <= 0.0);
+	CHECK(field.bytes() < 8u * 1024 * 1024);
+	int checked = 0;
+	// Farther than 2 mm from the skin (beyond the error of the field near thin parts) the sign is right everywhere.
+	CHECK(signMismatches(body, field, 20000, 0.004, 5u, &checked) == 0);
+	CHECK(checked > 10000);
+}
+
+TEST_CASE("skin field: layout invariants", "[skin_field]")
+{
+	const TriMesh sphere = bodyfit_test::uvSphere(0.08, 48, 24, Eigen::Vector3d(0.3, 1.1, -0.2));
+	const SkinField field = bodyfit::bakeSkinField(sphere, {});
+	REQUIRE(field.brickIndex.size() == std::size_t(field.nx) * std::size_t(field.ny) * std::size_t(field.nz));
+	REQUIRE(field.samples.size() == std::size_t(field.storedBricks()) * bodyfit::kSkinBrickSamples);
+	std::vector<int> seen(std::size_t(field.storedBricks()), 0);
+	for (std::int32_t s : field.brickIndex)
+	{
+		REQUIRE(s >= bodyfit::kFarInside);
+		REQUIRE(s < field.storedBricks());
+		if (s >= 0)
+			++seen[std::size_t(s)];
+	}
+	CHECK(std::all_of(seen.begin(), seen.end(), [](int n) { return n == 1; })); // each block used once
+	CHECK(std::count(field.brickIndex.begin(), field.brickIndex.end(), bodyfit::kFarInside) > 0); // the core
+
+	// Neighbouring stored bricks hold the same values on their shared face (the field is continuous).
+	const int E = bodyfit::kSkinBrickEdge, N = E + 1;
+	int faces = 0;
+	for (int k = 0; k < field.nz; ++k)
+		for (int j = 0; j < field.ny; ++j)
+			for (int i = 0; i + 1 < field.nx; ++i)
+			{
+				const int s = field.brickIndex[std::size_t(i + field.nx * (j + field.ny * k))];
+				const int t = field.brickIndex[std::size_t(i + 1 + field.nx * (j + field.ny * k))];
+				if (s < 0 || t < 0)
+					continue;
+				++faces;
+				for (int c = 0; c <= E; ++c)
+					for (int b = 0; b <= E; ++b)
+						REQUIRE(field.samples[std::size_t(s) * bodyfit::kSkinBrickSamples + std::size_t(E + N * (b + N * c))] ==
+								field.samples[std::size_t(t) * bodyfit::kSkinBrickSamples + std::size_t(0 + N * (b + N * c))]);
+			}
+	CHECK(faces > 10);
+
+	// Outside the grid: +clamp. Far inside (the centre): -clamp.
+	CHECK(bodyfit::sample(field, Eigen::Vector3d(10, 10, 10)) == field.clamp);
+	CHECK(bodyfit::sample(field, Eigen::Vector3d(0.3, 1.1, -0.2)) == -field.clamp);
+	// Every brick holding a point within clamp of the skin is stored (no ellipsoids: nothing else bounds the skin).
+	std::mt19937 rng(6u);
+	for (int n = 0; n < 500; ++n)
+	{
+		const SurfacePoint s = randomSurfacePoint(sphere, rng);
+		const Eigen::Vector3d p = s.p + 0.9 * field.clamp * s.n * (n % 2 ? 1.0 : -1.0);
+		const Eigen::Vector3d u = (p - field.origin) / (field.voxel * E);
+		const int brick = int(u.x()) + field.nx * (int(u.y()) + field.ny * int(u.z()));
+		REQUIRE(field.brickIndex[std::size_t(brick)] >= 0);
+	}
+}
+
+TEST_CASE("skin field: the ellipsoid union bounds the stored bricks", "[skin_field]")
+{
+	// A sphere enclosed by an ellipsoid 2 cm larger: bricks near the skin but beyond the union grown by skinOffset + 2h
+	// may be absent; every brick within the grown union that the skin's band reaches must be stored.
+	const TriMesh sphere = bodyfit_test::uvSphere(0.1, 48, 24);
+	bodyfit::Ellipsoid bound;
+	bound.radii = Eigen::Vector3d::Constant(0.102);
+	const SkinField all = bodyfit::bakeSkinField(sphere, {});
+	const SkinField tight = bodyfit::bakeSkinField(sphere, {bound});
+	CHECK(tight.storedBricks() <= all.storedBricks());
+	const double h = tight.voxel, reach = tight.skinOffset + 2.0 * h;
+	std::mt19937 rng(7u);
+	for (int n = 0; n < 500; ++n)
+	{
+		const SurfacePoint s = randomSurfacePoint(sphere, rng);
+		const Eigen::Vector3d p = s.p + std::uniform_real_distribution<double>(-0.011, 0.002 + reach)(rng) * s.n;
+		if (p.norm() > 0.102 + reach)
+			continue;
+		const Eigen::Vector3d u = (p - tight.origin) / (h * bodyfit::kSkinBrickEdge);
+		const int brick = int(u.x()) + tight.nx * (int(u.y()) + tight.ny * int(u.z()));
+		REQUIRE(tight.brickIndex[std::size_t(brick)] >= 0);
+	}
+	CHECK(maxReadingAtBakeSamples(sphere, tight) <= 0.0);
+}
+
+TEST_CASE("skin field: deterministic", "[skin_field]")
+{
+	const TriMesh box = bodyfit_test::subdividedCube(0.1, 6);
+	const SkinField a = bodyfit::bakeSkinField(box, {}), b = bodyfit::bakeSkinField(box, {});
+	CHECK(a.brickIndex == b.brickIndex);
+	CHECK(a.samples == b.samples);
+	CHECK(a.origin == b.origin);
+	CHECK(a.maxError == b.maxError);
+}
+
+TEST_CASE("skin field: bad options and meshes are one-line errors", "[skin_field]")
+{
+	const TriMesh box = bodyfit_test::subdividedCube(0.1, 2);
+	auto bad = [&](SkinFieldOptions o, const char* word) {
+		CAPTURE(word);
+		try
+		{
+			bodyfit::bakeSkinField(box, {}, o);
+			FAIL("accepted");
+		}
+		catch (const bodyfit::InvalidInputError& e)
+		{
+			CHECK(std::string(e.what()).find(word) != std::string::npos);
+			CHECK(std::string(e.what()).find('\n') == std::string::npos);
+		}
+	};
+	SkinFieldOptions o;
+	o.voxel = 0.0;
+	bad(o, "voxel");
+	o = {};
+	o.voxel = std::nan("");
+	bad(o, "voxel");
+	o = {};
+	o.clamp = 0.009; // < 2 voxels of 5 mm
+	bad(o, "clamp");
+	o = {};
+	o.skinOffset = -0.001;
+	bad(o, "skin offset");
+
+	TriMesh empty;
+	CHECK_THROWS_AS(bodyfit::bakeSkinField(empty, {}), bodyfit::InvalidInputError);
+	TriMesh nan = box;
+	nan.V(0, 1) = std::nan("");
+	CHECK_THROWS_AS(bodyfit::bakeSkinField(nan, {}), bodyfit::InvalidInputError);
+	TriMesh badIndex = box;
+	badIndex.F(0, 2) = 1000;
+	CHECK_THROWS_AS(bodyfit::bakeSkinField(badIndex, {}), bodyfit::InvalidInputError);
+	TriMesh millimetres = box;
+	millimetres.V *= 1e5; // 10 km: a grid of ~1.6e13 bricks
+	CHECK_THROWS_WITH(bodyfit::bakeSkinField(millimetres, {}), Catch::Contains("metres"));
+}
