@@ -8,13 +8,19 @@
 #include "bodyfit/fitting/inside_test.h"
 #include "bodyfit/fitting/mesh_io.h"
 
+#include "bodyfit/fitting/ellipsoid_io.h"
+
 #include "support/mesh_shapes.h"
 #include "support/paths.h"
+#include "support/temp_files.h"
 
 #include <catch2/catch.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <limits>
 #include <random>
 
 using bodyfit::SkinField;
@@ -354,4 +360,211 @@ TEST_CASE("skin field: bad options and meshes are one-line errors", "[skin_field
 	TriMesh millimetres = box;
 	millimetres.V *= 1e5; // 10 km: a grid of ~1.6e13 bricks
 	CHECK_THROWS_WITH(bodyfit::bakeSkinField(millimetres, {}), Catch::Contains("metres"));
+}
+
+// ---------------------------------------------------------------------------------------------------------- file
+
+namespace
+{
+
+/// A small real field (a sphere's), its side-file bytes, and a fit that names it.
+struct FileFixture
+{
+	SkinField field = bodyfit::bakeSkinField(bodyfit_test::uvSphere(0.05, 24, 12), {});
+	std::string bytes = bodyfit::skinFieldBytes(field);
+};
+
+void putU32(std::string& bytes, std::size_t at, std::uint32_t v)
+{
+	for (int i = 0; i < 4; ++i)
+		bytes[at + std::size_t(i)] = char(std::uint8_t(v >> (8 * i)));
+}
+
+void putF64(std::string& bytes, std::size_t at, double v)
+{
+	std::uint64_t bits;
+	std::memcpy(&bits, &v, 8);
+	for (int i = 0; i < 8; ++i)
+		bytes[at + std::size_t(i)] = char(std::uint8_t(bits >> (8 * i)));
+}
+
+/// Re-stamps the checksum (FNV-1a 64 of everything before it), so a test reaches the check after it.
+void restamp(std::string& bytes)
+{
+	std::uint64_t h = 14695981039346656037ULL;
+	for (std::size_t i = 0; i + 8 < bytes.size(); ++i)
+		h = (h ^ std::uint8_t(bytes[i])) * 1099511628211ULL;
+	for (int i = 0; i < 8; ++i)
+		bytes[bytes.size() - 8 + std::size_t(i)] = char(std::uint8_t(h >> (8 * i)));
+}
+
+/// parseSkinField refuses `bytes` with a one-line FormatError containing `word`.
+void refused(const std::string& bytes, const std::string& word)
+{
+	CAPTURE(word);
+	try
+	{
+		bodyfit::parseSkinField(bytes, "x.skin");
+		FAIL("accepted");
+	}
+	catch (const bodyfit::FormatError& e)
+	{
+		const std::string what = e.what();
+		CAPTURE(what);
+		CHECK(what.find("x.skin: skin field: ") == 0);
+		CHECK(what.find(word) != std::string::npos);
+		CHECK(what.find('\n') == std::string::npos);
+	}
+}
+
+} // namespace
+
+TEST_CASE("skin field file: round trip, bit for bit", "[skin_field][skin_field_io]")
+{
+	const FileFixture fx;
+	const SkinField back = bodyfit::parseSkinField(fx.bytes, "x.skin");
+	CHECK(back.origin == fx.field.origin);
+	CHECK(back.voxel == fx.field.voxel);
+	CHECK(back.clamp == fx.field.clamp);
+	CHECK(back.skinOffset == fx.field.skinOffset);
+	CHECK(back.maxError == fx.field.maxError);
+	CHECK(back.loweredSamples == fx.field.loweredSamples);
+	CHECK(back.brickIndex == fx.field.brickIndex);
+	CHECK(back.samples == fx.field.samples);
+	CHECK(bodyfit::skinFieldBytes(back) == fx.bytes);
+	// 96 header bytes + index + samples + 8 checksum bytes.
+	CHECK(fx.bytes.size() == 96 + 4 * fx.field.brickIndex.size() + 2 * fx.field.samples.size() + 8);
+}
+
+TEST_CASE("skin field file: every bad file is a one-line FormatError", "[skin_field][skin_field_io]")
+{
+	const FileFixture fx;
+	const std::string& good = fx.bytes;
+	refused("", "truncated");
+	refused(good.substr(0, 50), "truncated");
+	refused(good.substr(0, good.size() - 1), "truncated");
+	refused(good + "x", "trailing bytes");
+	std::string b = good;
+	b[0] = 'X';
+	refused(b, "bad magic");
+	b = good;
+	putU32(b, 8, 2);
+	refused(b, "unsupported version 2");
+	b = good;
+	putU32(b, 12, 16);
+	refused(b, "brick edge 16");
+	b = good;
+	b[200] = char(b[200] ^ 0x10); // a byte of the index: only the checksum notices
+	refused(b, "checksum");
+	b = good;
+	putF64(b, 16, std::nan(""));
+	refused(b, "origin[0]");
+	b = good;
+	putF64(b, 40, std::numeric_limits<double>::infinity());
+	refused(b, "voxel");
+	b = good;
+	putF64(b, 48, 0.001); // clamp below 2 voxels
+	refused(b, "clamp");
+	b = good;
+	putF64(b, 64, -1.0);
+	refused(b, "max error");
+	b = good;
+	putU32(b, 72, 0);
+	refused(b, "brick dimensions");
+	b = good;
+	putU32(b, 72, 40000), putU32(b, 76, 40000), putU32(b, 80, 40000); // 6.4e13 bricks: 256 TB of index
+	refused(b, "exceeds the limit");
+	b = good;
+	putU32(b, 72, 4000), putU32(b, 76, 4000), putU32(b, 80, 1); // 1.6e7 bricks: within the limit, not the file
+	refused(b, "truncated");
+	b = good;
+	putU32(b, 84, std::uint32_t(-5));
+	refused(b, "stored bricks -5");
+
+	// Content: valid sizes and checksum, bad values.
+	b = good;
+	putU32(b, 96, std::uint32_t(fx.field.storedBricks())); // block number one past the end
+	restamp(b);
+	refused(b, "out of range");
+	b = good;
+	putU32(b, 96, std::uint32_t(-7));
+	restamp(b);
+	refused(b, "out of range");
+	// Two bricks naming the same block (and so one block named by none).
+	const auto first = std::find_if(fx.field.brickIndex.begin(), fx.field.brickIndex.end(), [](int s) { return s >= 0; });
+	REQUIRE(first != fx.field.brickIndex.end());
+	const auto second = std::find_if(first + 1, fx.field.brickIndex.end(), [](int s) { return s >= 0; });
+	REQUIRE(second != fx.field.brickIndex.end());
+	b = good;
+	putU32(b, 96 + 4 * std::size_t(second - fx.field.brickIndex.begin()), std::uint32_t(*first));
+	restamp(b);
+	refused(b, "used twice");
+	b = good;
+	const std::size_t sampleAt = 96 + 4 * fx.field.brickIndex.size();
+	b[sampleAt] = char(0x00), b[sampleAt + 1] = char(0x80); // -32768
+	restamp(b);
+	refused(b, "-32768");
+}
+
+TEST_CASE("skin field file: read from disk, missing and oversized files", "[skin_field][skin_field_io]")
+{
+	// A version-1 file kept in the repository (a 5 cm cube at a 1 cm voxel; also the fuzzer's seed) still reads and
+	// gives the cube's distances: the centre is 2.5 cm deep (beyond the 2 cm clamp), a face centre is on the skin.
+	const SkinField cube = bodyfit::readSkinField(bodyfit_test::dataPath("skin_field_cube.skin"));
+	CHECK(cube.voxel == 0.01);
+	CHECK(bodyfit::sample(cube, Eigen::Vector3d(0.025, 0.025, 0.025)) == -cube.clamp);
+	CHECK(bodyfit::sample(cube, Eigen::Vector3d(0.025, 0.025, 0.0)) == Approx(0.0).margin(cube.maxError));
+	CHECK(bodyfit::sample(cube, Eigen::Vector3d(0.025, 0.025, -0.01)) == Approx(0.01).margin(cube.maxError + 0.001));
+
+	const FileFixture fx;
+	const bodyfit_test::TempDir dir("skin_field_io");
+	bodyfit::writeSkinField(dir.path("a.skin"), fx.field);
+	CHECK(bodyfit::readSkinField(dir.path("a.skin")).samples == fx.field.samples);
+	CHECK_THROWS_WITH(bodyfit::readSkinField(dir.path("none.skin")), Catch::Contains("none.skin") && Catch::Contains("does not exist"));
+	CHECK_THROWS_AS(bodyfit::readSkinField(dir.path("")), bodyfit::FormatError); // a directory
+	CHECK_THROWS_WITH(bodyfit::readSkinField(dir.write("t.skin", fx.bytes.substr(0, 300))), Catch::Contains("truncated"));
+}
+
+TEST_CASE("fit file with a skin field: written next to it, read back, old files still load", "[skin_field][skin_field_io]")
+{
+	const FileFixture fx;
+	const bodyfit_test::TempDir dir("skin_field_fit");
+	bodyfit::BodyFit fit;
+	bodyfit::FittedEllipsoid e;
+	e.ellipsoid.radii = Eigen::Vector3d(0.06, 0.06, 0.06);
+	fit.ellipsoids.push_back(e);
+	bodyfit::writeEllipsoidJson(dir.path("old.json"), fit); // no field: no section, no side file
+	CHECK(!std::filesystem::exists(dir.path("old.skin")));
+	const bodyfit::BodyFit old = bodyfit::readEllipsoidJson(dir.path("old.json"));
+	CHECK(!old.skinField);
+	CHECK(old.skinFieldFile.empty());
+
+	fit.skinField = std::make_shared<const SkinField>(fx.field);
+	const std::string json = dir.path("body.json");
+	bodyfit::writeEllipsoidJson(json, fit);
+	CHECK(bodyfit::skinFieldPathFor(json) == dir.path("body.skin"));
+	REQUIRE(std::filesystem::exists(dir.path("body.skin")));
+	const bodyfit::BodyFit back = bodyfit::readEllipsoidJson(json);
+	REQUIRE(back.skinField);
+	CHECK(back.skinFieldFile == "body.skin");
+	CHECK(back.skinField->samples == fx.field.samples);
+	CHECK(bodyfit::skinFieldPathFor(dir.path("x.skin")) == dir.path("x.skin.skin"));
+
+	// The section without its file, with a damaged file, or disagreeing with the file: one line naming both files.
+	std::filesystem::remove(dir.path("body.skin"));
+	CHECK_THROWS_WITH(bodyfit::readEllipsoidJson(json),
+					  Catch::Contains("body.json: skin_field: ") && Catch::Contains("body.skin") && Catch::Contains("does not exist"));
+	dir.write("body.skin", fx.bytes.substr(0, fx.bytes.size() - 3));
+	CHECK_THROWS_WITH(bodyfit::readEllipsoidJson(json), Catch::Contains("body.json: skin_field: ") && Catch::Contains("truncated"));
+	SkinField other = fx.field;
+	other.clamp = 0.02;
+	bodyfit::writeSkinField(dir.path("body.skin"), other);
+	CHECK_THROWS_WITH(bodyfit::readEllipsoidJson(json), Catch::Contains("says clamp 0.012"));
+
+	// A name that leaves the fit file's directory is refused by the parser.
+	std::string text = bodyfit::toEllipsoidJson(back);
+	const std::size_t at = text.find("\"body.skin\"");
+	REQUIRE(at != std::string::npos);
+	text.replace(at, 11, "\"../body.skin\"");
+	CHECK_THROWS_WITH(bodyfit::parseEllipsoidJson(text, "f.json"), Catch::Contains("skin_field.file"));
 }

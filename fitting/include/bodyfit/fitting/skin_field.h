@@ -63,6 +63,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace bodyfit
@@ -126,5 +127,33 @@ constexpr long long kMaxSkinFieldBricks = 16LL * 1024 * 1024;
 
 /// The field at p (metres, body frame): the reference the Bullet side must match. +clamp outside the grid.
 double sample(const SkinField& field, const Eigen::Vector3d& p);
+
+// ---------------------------------------------------------------------------------------------------------------
+// The side file. A fit file (ellipsoid_io.h) names it in its "skin_field" section; it sits next to the fit file as
+// <fit stem>.skin. A side file rather than embedded data keeps the JSON readable (3 MB of samples would be ~8 MB of
+// base64) and lets a reader that has no use for the field skip it. Binary, little-endian:
+//   offset 0   magic "BFSKINF" + NUL (8 bytes)
+//          8   u32 version (kSkinFieldFileVersion), u32 brick edge (must be 8)
+//         16   f64 origin x, y, z; f64 voxel, clamp, skin offset, max error
+//         72   i32 nx, ny, nz, stored bricks, lowered samples; u32 0 (reserved)
+//         96   i32 brick index [nx*ny*nz]; i16 samples [stored * 729]
+//        end   u64 FNV-1a (64 bit) of every byte before it
+// Read back validated: sizes against the file's length before anything is allocated, the checksum, every header
+// value in the range a bake can produce, every index entry -2, -1 or a block number used once, every sample in
+// [-32767, 32767].
+
+constexpr const char kSkinFieldMagic[8] = {'B', 'F', 'S', 'K', 'I', 'N', 'F', '\0'};
+constexpr std::uint32_t kSkinFieldFileVersion = 1;
+/// Largest side file read: the brick limit's index alone is 64 MB; a body's file is ~3-5 MB.
+constexpr std::size_t kMaxSkinFieldFileBytes = std::size_t(256) << 20;
+
+/// The side file's bytes.
+std::string skinFieldBytes(const SkinField& field);
+/// 	hrows FormatError "<name>: skin field: <problem>" (one line) for anything but a valid file.
+SkinField parseSkinField(const std::string& bytes, const std::string& name);
+/// 	hrows FormatError naming the file when it cannot be written.
+void writeSkinField(const std::string& path, const SkinField& field);
+/// 	hrows FormatError naming the file: missing, not a regular file, larger than kMaxSkinFieldFileBytes, or invalid.
+SkinField readSkinField(const std::string& path);
 
 } // namespace bodyfit
