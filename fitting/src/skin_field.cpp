@@ -684,26 +684,47 @@ void quantise(OwnedPoints& owned, double quantum)
 	}
 }
 
-/// Every vertex and, on every face, the barycentric lattice (i, j, k) / n, i + j + k = n, without its corners, for
-/// n = skinSampleDivisions (skin_field.h).
-std::vector<Eigen::Vector3d> skinSamples(const TriMesh& mesh, double voxel)
+/// The owned points at the 8 corners of a cell (corner n at +(n & 1, n >> 1 & 1, n >> 2) lattice steps; -1 for a
+/// corner in a brick that is not near, whose quanta are then in `constant`), and the trilinear reading in quanta.
+struct CellCorners
 {
-	std::vector<Eigen::Vector3d> out;
-	out.reserve(std::size_t(mesh.vertexCount() + 7 * mesh.faceCount()));
-	for (int v = 0; v < mesh.vertexCount(); ++v)
-		out.push_back(mesh.V.row(v).transpose());
-	for (int f = 0; f < mesh.faceCount(); ++f)
+	long long point[8];
+	int constant[8];
+	double weight[8];
+
+	CellCorners(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign, const CellLocation& c)
 	{
-		const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose(), b = mesh.V.row(mesh.F(f, 1)).transpose(),
-							  c = mesh.V.row(mesh.F(f, 2)).transpose();
-		const int n = skinSampleDivisions(a, b, c, voxel);
-		for (int i = 0; i <= n; ++i)
-			for (int j = 0; i + j <= n; ++j)
-				if (i != n && j != n && i + j != 0)
-					out.push_back((double(i) * a + double(j) * b + double(n - i - j) * c) / double(n));
+		for (int n = 0; n < 8; ++n)
+			weight[n] = ((n & 1) ? c.frac[0] : 1.0 - c.frac[0]) * ((n & 2) ? c.frac[1] : 1.0 - c.frac[1]) *
+						((n & 4) ? c.frac[2] : 1.0 - c.frac[2]);
+		const int slot = owned.brickSlot[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))];
+		if (slot >= 0 && c.cell[0] < B - 1 && c.cell[1] < B - 1 && c.cell[2] < B - 1)
+		{
+			const long long base = (long long)slot * kOwned + c.cell[0] + B * (c.cell[1] + B * c.cell[2]);
+			for (int n = 0; n < 8; ++n) // all 8 corners in the cell's own brick
+				point[n] = base + (n & 1) + B * ((n >> 1) & 1) + B * B * (n >> 2);
+			return;
+		}
+		const long long X = (long long)c.brick[0] * B + c.cell[0], Y = (long long)c.brick[1] * B + c.cell[1],
+						Z = (long long)c.brick[2] * B + c.cell[2];
+		for (int n = 0; n < 8; ++n)
+		{
+			point[n] = owned.index(L, X + (n & 1), Y + ((n >> 1) & 1), Z + (n >> 2));
+			if (point[n] < 0)
+				constant[n] = latticeQuanta(L, owned, brickSign, X + (n & 1), Y + ((n >> 1) & 1), Z + (n >> 2));
+		}
 	}
-	return out;
-}
+
+	/// The reading in quanta: the same sum, in the same order, as trilinear() in sample().
+	double reading(const OwnedPoints& owned) const
+	{
+		double sum = 0.0;
+		for (int n = 0; n < 8; ++n)
+			if (weight[n] != 0.0)
+				sum += weight[n] * double(point[n] >= 0 ? owned.quanta[std::size_t(point[n])] : constant[n]);
+		return sum;
+	}
+};
 
 /// Step 4: every skin sample that reads r > 0 has the 8 corners of its cell lowered by the least change that brings
 /// it to 0 (corner i by w_i r / sum w^2, w the trilinear weights, rounded up to whole quanta). Lowering never raises a
@@ -719,31 +740,40 @@ int lowerSkinReadings(const Lattice& L, const std::vector<Eigen::Vector3d>& samp
 		if (!locateCell(L.origin, L.h, L.dims, p, c))
 			continue; // cannot happen: the grid holds the mesh's box
 		holdsSkin[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))] = 1;
-		const long long X = (long long)c.brick[0] * B + c.cell[0], Y = (long long)c.brick[1] * B + c.cell[1],
-						Z = (long long)c.brick[2] * B + c.cell[2];
-		const double reading =
-			trilinear(c, [&](int dx, int dy, int dz) { return latticeQuanta(L, owned, brickSign, X + dx, Y + dy, Z + dz); });
+		const CellCorners corners(L, owned, brickSign, c);
+		const double reading = corners.reading(owned);
 		if (reading <= 0.0)
 			continue;
 		++lowered;
-		double weights[8], sum2 = 0.0;
-		for (int corner = 0; corner < 8; ++corner)
+		double sum2 = 0.0;
+		for (double w : corners.weight)
+			sum2 += w * w;
+		for (int n = 0; n < 8; ++n)
 		{
-			const int dx = corner & 1, dy = (corner >> 1) & 1, dz = corner >> 2;
-			weights[corner] = (dx ? c.frac[0] : 1.0 - c.frac[0]) * (dy ? c.frac[1] : 1.0 - c.frac[1]) *
-							  (dz ? c.frac[2] : 1.0 - c.frac[2]);
-			sum2 += weights[corner] * weights[corner];
-		}
-		for (int corner = 0; corner < 8; ++corner)
-		{
-			const long long q = owned.index(L, X + (corner & 1), Y + ((corner >> 1) & 1), Z + (corner >> 2));
-			if (q < 0 || weights[corner] == 0.0) // q >= 0 always: a corner is within sqrt(3) h < clamp of the skin
+			const long long q = corners.point[n];
+			if (q < 0 || corners.weight[n] == 0.0) // q >= 0 always: a corner is within sqrt(3) h < clamp of the skin
 				continue;
-			const int by = int(std::ceil(weights[corner] * reading / sum2));
+			const int by = int(std::ceil(corners.weight[n] * reading / sum2));
 			owned.quanta[std::size_t(q)] = std::int16_t(std::max(-kMaxQuanta, owned.quanta[std::size_t(q)] - by));
 		}
 	}
 	return lowered;
+}
+
+/// The largest |reading| at the skin samples (metres; the true distance there is 0), read as sample() reads the
+/// stored field: the bricks holding skin samples are stored, with the owned points' values.
+double largestSkinReading(const Lattice& L, const std::vector<Eigen::Vector3d>& samples, const OwnedPoints& owned,
+						  const std::vector<std::int8_t>& brickSign, double quantum, double clamp)
+{
+	double worst = 0.0;
+	for (const Eigen::Vector3d& p : samples)
+	{
+		CellLocation c;
+		if (locateCell(L.origin, L.h, L.dims, p, c))
+			worst = std::max(worst, std::abs(std::clamp(CellCorners(L, owned, brickSign, c).reading(owned) * quantum,
+														-clamp, clamp)));
+	}
+	return worst;
 }
 
 /// The ellipsoid union grown by r, for the test of a brick: the boxes, the smallest semi-axes.
@@ -842,10 +872,31 @@ void checkMesh(const TriMesh& mesh)
 
 } // namespace
 
-int skinSampleDivisions(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double voxel)
+std::vector<Eigen::Vector3d> skinSamplePoints(const TriMesh& mesh, double voxel)
 {
-	const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-	return int(std::clamp(std::ceil(longest / voxel), 3.0, 64.0));
+	auto divisions = [voxel](double length) { return int(std::clamp(std::ceil(length / voxel), 3.0, 64.0)); };
+	std::vector<Eigen::Vector3d> out;
+	out.reserve(std::size_t(mesh.vertexCount() + 4 * mesh.faceCount()));
+	for (int v = 0; v < mesh.vertexCount(); ++v)
+		out.push_back(mesh.V.row(v).transpose());
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		const Eigen::Vector3d p[3] = {mesh.V.row(mesh.F(f, 0)).transpose(), mesh.V.row(mesh.F(f, 1)).transpose(),
+									  mesh.V.row(mesh.F(f, 2)).transpose()};
+		for (int k = 0; k < 3; ++k)
+			if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3)) // each edge once: from the face where it runs up the indices
+			{
+				const Eigen::Vector3d &a = p[k], &b = p[(k + 1) % 3];
+				const int n = divisions((b - a).norm());
+				for (int i = 1; i < n; ++i)
+					out.push_back((double(n - i) * a + double(i) * b) / double(n));
+			}
+		const int n = divisions(std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()}));
+		for (int i = 1; i < n; ++i)
+			for (int j = 1; i + j < n; ++j)
+				out.push_back((double(i) * p[0] + double(j) * p[1] + double(n - i - j) * p[2]) / double(n));
+	}
+	return out;
 }
 
 std::size_t SkinField::bytes() const
@@ -887,7 +938,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	field.nx = L.dims[0], field.ny = L.dims[1], field.nz = L.dims[2];
 	quantise(owned, field.quantum());
 
-	const std::vector<Eigen::Vector3d> skin = skinSamples(mesh, L.h);
+	const std::vector<Eigen::Vector3d> skin = skinSamplePoints(mesh, L.h);
 	std::vector<char> stored(std::size_t(L.brickCount()), 0);
 	field.loweredSamples = lowerSkinReadings(L, skin, owned, brickSign, stored);
 	const double halfDiagonal = 0.5 * std::sqrt(3.0) * B * L.h;
@@ -902,8 +953,8 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 			stored[std::size_t(brick)] = 1;
 	}
 	gatherBricks(L, owned, brickSign, stored, field);
-	for (const Eigen::Vector3d& p : skin)
-		field.maxError = std::max(field.maxError, std::abs(sample(field, p)));
+	field.maxError =
+		std::max(field.maxError, largestSkinReading(L, skin, owned, brickSign, field.quantum(), field.clamp));
 	return field;
 }
 

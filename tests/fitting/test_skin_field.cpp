@@ -117,22 +117,12 @@ Accuracy measureAccuracy(const TriMesh& mesh, const SkinField& field, int count,
 	return a;
 }
 
-/// The largest reading at the skin samples of the conservative pass (skin_field.h step 4): every vertex, and the
-/// barycentric lattice of skinSampleDivisions on every face.
+/// The largest reading at the skin samples of the conservative pass (skin_field.h step 4).
 double maxReadingAtBakeSamples(const TriMesh& mesh, const SkinField& field)
 {
 	double worst = -1.0;
-	for (int v = 0; v < mesh.vertexCount(); ++v)
-		worst = std::max(worst, bodyfit::sample(field, mesh.V.row(v).transpose()));
-	for (int f = 0; f < mesh.faceCount(); ++f)
-	{
-		const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
-		const int n = bodyfit::skinSampleDivisions(a, b, c, field.voxel);
-		for (int i = 0; i <= n; ++i)
-			for (int j = 0; i + j <= n; ++j)
-				if (i != n && j != n && i + j != 0) // the corners are the vertices above (the same point bit for bit)
-					worst = std::max(worst, bodyfit::sample(field, (double(i) * a + double(j) * b + double(n - i - j) * c) / double(n)));
-	}
+	for (const Eigen::Vector3d& p : bodyfit::skinSamplePoints(mesh, field.voxel))
+		worst = std::max(worst, bodyfit::sample(field, p));
 	return worst;
 }
 

@@ -46,8 +46,8 @@
 ///     border (a flood fill along rows: a pocket of outside air enclosed by the band, e.g. under an arm, is outside).
 ///     Two neighbouring points at |d| >= clamp > h, or such a point and a neighbour, cannot lie on the two sides of
 ///     the skin, so a run never crosses it. A brick with no point within clamp takes the sign of a row through it.
-///  4. Conservative: the skin is sampled (every vertex, and on every triangle the barycentric lattice of
-///     skinSampleDivisions: points at most one voxel apart, at least the 7 non-corner points of thirds); wherever
+///  4. Conservative: the skin is sampled (skinSamplePoints: every vertex, every edge and every face interior at
+///     points at most a voxel apart, at least in thirds); wherever
 ///     the interpolated field reads r > 0 the 8 lattice samples of that cell are lowered by the least change that
 ///     brings it to 0 (corner i by w_i r / sum w^2, w the trilinear weights, rounded up to whole quanta). Lowering
 ///     never raises another reading, so after one pass no skin sample reads > 0. Between samples the reading is not
@@ -88,9 +88,11 @@ constexpr std::int32_t kFarInside = -2;
 /// Brick edge B in voxels, and lattice points per stored brick ((B+1)^3).
 constexpr int kSkinBrickEdge = 8;
 constexpr int kSkinBrickSamples = (kSkinBrickEdge + 1) * (kSkinBrickEdge + 1) * (kSkinBrickEdge + 1);
-/// Divisions n of the barycentric lattice (i, j, k) / n, i + j + k = n, that the conservative pass (step 4 above)
-/// samples on the triangle (a, b, c): ceil(longest edge / voxel), in [3, 64].
-int skinSampleDivisions(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double voxel);
+/// The skin samples of the conservative pass (step 4 above): every vertex; every edge (from the face where it runs
+/// from the lower to the higher vertex index: each edge of a closed, consistently oriented mesh once) at i / n of
+/// its length, 0 < i < n; every face's interior at the barycentric points (i, j, n - i - j) / n, i, j, n - i - j >= 1.
+/// n = ceil(length / voxel) in [3, 64], the length being the edge's, or the face's longest edge.
+std::vector<Eigen::Vector3d> skinSamplePoints(const TriMesh& mesh, double voxel);
 
 struct SkinField
 {
