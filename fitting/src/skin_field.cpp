@@ -98,11 +98,11 @@ Lattice makeLattice(const TriMesh& mesh, const SkinFieldOptions& o)
 			throw InvalidInputError("bakeSkinField: the mesh is too large for the grid (" + std::to_string(hi[k] - lo[k]) +
 									" m along an axis at a voxel of " + std::to_string(o.voxel) + " m; is it in metres?)");
 		L.dims[k] = std::max(1, int(n));
-		count *= L.dims[k];
+		count *= L.dims[k]; // each factor and the running product <= the limit: no overflow
+		if (count > kMaxSkinFieldBricks)
+			throw InvalidInputError("bakeSkinField: the grid would have more than " + std::to_string(kMaxSkinFieldBricks) +
+									" bricks (is the mesh in metres?)");
 	}
-	if (count > kMaxSkinFieldBricks)
-		throw InvalidInputError("bakeSkinField: the grid would have " + std::to_string(count) + " bricks (limit " +
-								std::to_string(kMaxSkinFieldBricks) + "; is the mesh in metres?)");
 	return L;
 }
 

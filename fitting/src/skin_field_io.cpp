@@ -104,12 +104,13 @@ std::string headerProblem(const SkinField& f, long long stored, long long lowere
 	}
 	if (!(f.maxError >= 0.0 && f.maxError <= 1.0))
 		return "max error must be in [0, 1] m (got " + number(f.maxError) + ")";
+	const std::string dims = std::to_string(f.nx) + " x " + std::to_string(f.ny) + " x " + std::to_string(f.nz);
 	if (f.nx < 1 || f.ny < 1 || f.nz < 1)
-		return "brick dimensions must be >= 1 (got " + std::to_string(f.nx) + " x " + std::to_string(f.ny) + " x " +
-			   std::to_string(f.nz) + ")";
-	const long long bricks = (long long)f.nx * f.ny * f.nz;
-	if (bricks > kMaxSkinFieldBricks)
-		return "grid of " + std::to_string(bricks) + " bricks exceeds the limit of " + std::to_string(kMaxSkinFieldBricks);
+		return "brick dimensions must be >= 1 (got " + dims + ")";
+	long long bricks = 1;
+	for (int n : {f.nx, f.ny, f.nz}) // each factor and running product <= the limit: no overflow
+		if ((bricks *= n) > kMaxSkinFieldBricks)
+			return "grid of " + dims + " bricks exceeds the limit of " + std::to_string(kMaxSkinFieldBricks) + " bricks";
 	if (stored < 0 || stored > bricks)
 		return "stored bricks " + std::to_string(stored) + " not in [0, " + std::to_string(bricks) + "]";
 	if (lowered < 0)

@@ -20,6 +20,8 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <random>
 
@@ -464,6 +466,13 @@ TEST_CASE("skin field file: every bad file is a one-line FormatError", "[skin_fi
 	b = good;
 	putU32(b, 72, 40000), putU32(b, 76, 40000), putU32(b, 80, 40000); // 6.4e13 bricks: 256 TB of index
 	refused(b, "exceeds the limit");
+	// Found by fuzz_skin_field: dimensions whose product overflowed 64 bits (UBSan) before the limit was checked.
+	{
+		std::ifstream in(bodyfit_test::dataPath("robust_fuzz_skin_field_dims_overflow.skin"), std::ios::binary);
+		const std::string found((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+		REQUIRE(found.size() > 96);
+		refused(found, "exceeds the limit");
+	}
 	b = good;
 	putU32(b, 72, 4000), putU32(b, 76, 4000), putU32(b, 80, 1); // 1.6e7 bricks: within the limit, not the file
 	refused(b, "truncated");
