@@ -344,19 +344,15 @@ OwnedPoints nearBricks(const Lattice& L, const std::vector<PlaneTriangle>& trian
 	return owned;
 }
 
-/// Lowers the nearest distance found at lattice point (X, Y, Z) to its distance to T when that is smaller, recording
-/// the sign from the pseudo-normal of T's nearest feature.
-inline void measure(const PlaneTriangle& T, const Lattice& L, long long X, long long Y, long long Z, OwnedPoints& owned)
+/// Lowers the nearest distance found at owned point p to its distance to T when that is smaller, recording the sign
+/// from the pseudo-normal of T's nearest feature. (s, t, w): the point in T's plane frame.
+inline void measure(const PlaneTriangle& T, double s, double t, double w, long long p, OwnedPoints& owned)
 {
-	const long long p = owned.index(L, X, Y, Z);
 	if (p < 0)
 		return; // cannot happen: the point is within clamp of T's box, so its brick is near
 	float& best = owned.best2[std::size_t(p)];
-	const Eigen::Vector3d d = L.point(X, Y, Z) - T.v0;
-	const double w = d.dot(T.n);
 	if (w * w >= double(best))
 		return;
-	const double s = d.dot(T.u), t = d.dot(T.v);
 	const Closest2D c = closest2D(T, s, t);
 	const double d2 = c.d2 + w * w;
 	if (d2 >= double(best))
@@ -415,6 +411,7 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, Owne
 	}
 	long long lo[3], hi[3], P[3];
 	latticeRange(L, R.lo, R.hi, 0.0, lo, hi);
+	const double step[3] = {L.h * T.u[ra], L.h * T.v[ra], L.h * T.n[ra]};
 	for (long long V = lo[va]; V <= hi[va]; ++V)
 	{
 		for (int k = 0; k < planes; ++k)
@@ -434,9 +431,12 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, Owne
 			}
 			if (ra0 > ra1)
 				continue;
-			P[ua] = U, P[va] = V;
-			for (P[ra] = (long long)std::ceil(ra0); P[ra] <= (long long)std::floor(ra1); ++P[ra])
-				measure(T, L, P[0], P[1], P[2], owned);
+			// The row's points in T's plane frame: from its first point, one lattice step along ra at a time.
+			P[ua] = U, P[va] = V, P[ra] = (long long)std::ceil(ra0);
+			const Eigen::Vector3d d = L.point(P[0], P[1], P[2]) - T.v0;
+			double s = d.dot(T.u), t = d.dot(T.v), w = d.dot(T.n);
+			for (; P[ra] <= (long long)std::floor(ra1); ++P[ra], s += step[0], t += step[1], w += step[2])
+				measure(T, s, t, w, owned.index(L, P[0], P[1], P[2]), owned);
 		}
 	}
 }
