@@ -71,6 +71,9 @@ void btEllipsoidClothStats::reset()
 	m_collisionCpuSeconds = 0.0;
 	m_minZeta = SIMD_INFINITY;
 	m_nonFiniteNodes = 0;
+	m_minSkinField = SIMD_INFINITY;
+	m_skinFallbacks = 0;
+	m_skinMarchLimits = 0;
 }
 
 void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
@@ -86,6 +89,9 @@ void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
 	m_collisionCpuSeconds += other.m_collisionCpuSeconds;
 	m_minZeta = btMin(m_minZeta, other.m_minZeta);
 	m_nonFiniteNodes += other.m_nonFiniteNodes;
+	m_minSkinField = btMin(m_minSkinField, other.m_minSkinField);
+	m_skinFallbacks += other.m_skinFallbacks;
+	m_skinMarchLimits += other.m_skinMarchLimits;
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -126,6 +132,8 @@ bool btEllipsoidClothCollider::validateConfig(const Config& config, const char**
 		e = "btEllipsoidClothCollider::Config: m_friction is negative (kBulletFriction(), -1, means kDF x body friction)";
 	else if (config.m_velocityRule != REMOVE_NORMAL_COULOMB && config.m_velocityRule != PAPER_EQ10)
 		e = "btEllipsoidClothCollider::Config: m_velocityRule is not a VelocityRule";
+	else if (config.m_surface != TIGHT_SKIN && config.m_surface != ELLIPSOIDS)
+		e = "btEllipsoidClothCollider::Config: m_surface is not a SurfaceMode";
 	else if (skin > btScalar(0.05))
 		w = "btEllipsoidClothCollider::Config: m_skinOffset above 5 cm is implausible for cloth (metres, not mm?)";
 	else if (friction > btScalar(2))
@@ -138,6 +146,12 @@ bool btEllipsoidClothCollider::setConfig(const Config& config, const char** erro
 	const char* warning = 0;
 	if (!validateConfig(config, error, &warning, m_bodyExtent))
 		return false;
+	if (const char* tight = btSkinFieldConfigError(config, static_cast<btEllipsoidClothColliderCore*>(this)->getCompound()))
+	{
+		if (error)
+			*error = tight;
+		return false;
+	}
 	m_config = config;
 	m_configWarning = warning;
 	return true;
@@ -295,6 +309,7 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 		m_deltaInverse.setIdentity();
 	}
 	m_current.update(m_compound, m_currentPose);
+	m_skinGeometry.begin(activeSkinField(), btMax(m_config.m_skinOffset, btScalar(0)), m_currentPose);
 	btRigidBody* rigid = btRigidBody::upcast(m_body);
 	m_dynamicBody = m_config.m_applyReactionToBody && rigid && !rigid->isStaticOrKinematicObject() &&
 							rigid->getInvMass() > btScalar(0)
@@ -377,7 +392,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 		btScalar zeta;
 		if (collideNode(node, q, substep, zeta))
 			minZeta = btMin(minZeta, zeta);
-		if (m_teleported)
+		if (m_teleported && !m_skinGeometry.field())
 			leavePocket(node, substep, minZeta);
 	}
 	stats.m_minZeta = minZeta;
@@ -394,6 +409,8 @@ BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoft
 	if (nc == 0)
 		return false;
 	++m_lastStats.m_nodesTested;
+	if (m_skinGeometry.field())
+		return collideOnSkin(node, q, substep, zeta); // tight mode: the contact is decided on the skin field
 	// 2. Narrow phase: the earliest entry along q -> x.
 	btPathEntry entry;
 	btEarliestEntry(m_current.getPackedRecords(), substep.m_candidates, nc, btPathEnds(q, x), substep.m_tvals, entry);
@@ -676,7 +693,8 @@ btEllipsoidClothCollider* btEllipsoidClothSoftBodySolver::installCollider(btDyna
 	const btEllipsoidCompoundShape* compound = ellipsoidCompoundOf(body->getCollisionShape(), &owned, reason);
 	if (!compound)
 		return 0;
-	if (!btEllipsoidClothCollider::validateConfig(config, reason, 0, largestSemiAxis(*compound)))
+	if (!btEllipsoidClothCollider::validateConfig(config, reason, 0, largestSemiAxis(*compound)) ||
+		(*reason = btSkinFieldConfigError(config, compound)) != 0)
 	{
 		if (owned)
 		{

@@ -11,6 +11,7 @@ public header shows only btEllipsoidClothCollider. Tests that craft node paths b
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 
 #include "src/btEllipsoidNarrowPhase.h"
+#include "src/btSkinFieldResponse.h"
 #include "src/btEllipsoidUnionPushOut.h"
 
 class btRigidBody;
@@ -49,6 +50,10 @@ public:
 	/// A placed node touches an ellipsoid whose surface is this close (metres): the skin plus half of it (placement
 	/// in a crease and the first-order distance estimate stay within that) plus 0.5 mm.
 	static btScalar contactBand(btScalar skin) { return btScalar(1.5) * skin + btScalar(0.0005); }
+
+	const btEllipsoidCompoundShape* getCompound() const { return m_compound; }
+	/// The skin field of tight mode for the current Config (getActiveSkinField), or 0. btSkinFieldResponse.cpp.
+	const btSkinDistanceField* activeSkinField() const;
 
 private:
 	/// Everything one collide() call shares between its nodes.
@@ -99,6 +104,7 @@ private:
 	btAlignedObjectArray<btScalar> m_candidateT;
 	btAlignedObjectArray<int> m_contactCandidates;
 	btEllipsoidUnionPushOut m_pushOut;
+	btSkinFieldGeometry m_skinGeometry; ///< tight mode this substep (its field is 0 in ELLIPSOIDS mode)
 
 	btTransform interpolatedKinematicPose();
 	btVector3 bodyVelocityAt(const btVector3& worldPoint, btScalar dt) const;
@@ -119,6 +125,19 @@ private:
 						 const btVector3& start, const btVector3& center, const Substep& substep, btScalar remaining);
 	/// Moves the node by `displacement` if that path enters no ellipsoid.
 	void slideAlong(btSoftBody::Node& node, const btVector3& displacement, const Substep& substep);
+
+	// Tight mode (btSkinFieldResponse.cpp): contact decided on the skin field for a node the broad phase kept.
+	/// The path against the field: no contact, placement at the first point at the skin offset, or push-out.
+	/// \return false (zeta is not tracked in tight mode; the field's minimum goes to the stats).
+	bool collideOnSkin(btSoftBody::Node& node, const btVector3& q, const Substep& substep, btScalar& zeta);
+	/// A node that starts within the skin: Newton on the field from x, else the union push-out (counted).
+	/// \return the field at the node's final position.
+	btScalar pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb, const btVector3& center,
+					   const Substep& substep);
+	/// respondVelocity with the field's normal: the velocity rule, the slide along the field, the cap, the reaction.
+	/// `value` (the field at the node) follows the slide.
+	bool respondOnSkin(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface, const btVector3& start,
+					   const btVector3& center, const Substep& substep, btScalar remaining, btScalar& value);
 };
 
 #endif // BT_ELLIPSOID_CLOTH_COLLIDER_CORE_H

@@ -66,12 +66,38 @@ bool transformsEqual(const btTransform& a, const btTransform& b)
 } // namespace
 
 btEllipsoidCompoundShape::btEllipsoidCompoundShape(btScalar childMargin, bool dynamicAabbTree)
-	: btCompoundShape(dynamicAabbTree, 0), m_childMargin(childMargin), m_analyticRevision(0)
+	: btCompoundShape(dynamicAabbTree, 0),
+	  m_childMargin(childMargin),
+	  m_analyticRevision(0),
+	  m_skinField(0),
+	  m_ownsSkinField(false)
 {
+}
+
+bool btEllipsoidCompoundShape::setSkinField(const btSkinDistanceField* field, bool owned, const char** error)
+{
+	const char* e = 0;
+	if (field && !field->isValid())
+		e = "btEllipsoidCompoundShape::setSkinField: the field is not valid (btSkinDistanceField::set failed or never ran)";
+	else if (field && !(m_localScaling == btVector3(1, 1, 1)))
+		e = "btEllipsoidCompoundShape::setSkinField: the compound has a local scaling other than (1, 1, 1); the field "
+			"describes the unscaled body";
+	if (error)
+		*error = e;
+	if (e)
+		return false;
+	if (m_ownsSkinField && m_skinField != field)
+		delete m_skinField;
+	m_skinField = field;
+	m_ownsSkinField = field && owned;
+	++m_analyticRevision;
+	return true;
 }
 
 btEllipsoidCompoundShape::~btEllipsoidCompoundShape()
 {
+	if (m_ownsSkinField)
+		delete m_skinField;
 	for (int i = 0; i < m_children.size(); ++i)
 	{
 		btCollisionShape* child = m_children[i].m_childShape;

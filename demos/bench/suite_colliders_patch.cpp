@@ -3,7 +3,12 @@
 // settings for every collider:
 //   (a) btEllipsoidClothCollider on the fitted ellipsoid compound (Bullet's own response to the body turned off);
 //   (b) Bullet's default soft-body path (SDF_RS) against a btBvhTriangleMeshShape of the body mesh;
-//   (c) Bullet's default path against the same ellipsoid compound (sparse SDF on each btEllipsoidShape child).
+//   (c) Bullet's default path against the same ellipsoid compound (sparse SDF on each btEllipsoidShape child);
+//   (t) btEllipsoidClothCollider in TIGHT_SKIN mode: (a)'s compound with a skin distance field attached (issue 14;
+//       bullet_ext/README.md, "Tight skin surface"). The field is a BRUTE-FORCE bake made here from the body mesh
+//       (demos/bench/skin_field_bake.h: the exact signed mesh distance at every lattice point of the band), not the
+//       project's bake. (a) is the same collider in ELLIPSOIDS mode (no field). With both, (a) and (t) are stepped
+//       in turn in one loop, so their cost ratio is measured under the same machine load.
 // Per step: wall time of stepSimulation, collision time (soft-rigid collision detection inside
 // performDiscreteCollisionDetection + the collider's own time), and the number of nodes inside the real body mesh
 // (MeshInsideTest: ray parity per component, 3-axis vote, against the original mesh, not the ellipsoids).
@@ -14,6 +19,7 @@
 // (bodyfit-bench --help lists them) pick cases, steps, resolution and the Bullet paths' tuning, e.g.
 //   bodyfit-bench colliders_patch --cases b --steps 12 --voxel 0.05
 #include "bench/bench_common.h"
+#include "bench/skin_field_bake.h"
 
 #include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/ellipsoid_io.h"
@@ -22,13 +28,17 @@
 #include "bodyfit/fitting/segmentation.h"
 #include "bodyfit/fitting/statistics.h"
 
+#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
+#include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 #include "bodyfit/bullet_ext/btEllipsoidShape.h"
 #include "bodyfit/drape/garment.h"
 #include "bodyfit/drape/simulation.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <tuple>
 
 namespace
 {
@@ -49,7 +59,7 @@ struct Settings
 	double voxel = 0.02;     // sparse-SDF voxel for the Bullet paths
 	double meshMargin = 0.0; // btBvhTriangleMeshShape margin (also the margin of Bullet's extruded prisms)
 	double kKHR = 1.0;       // Bullet's contact hardness for static bodies (default 0.1 lets nodes sink)
-	std::string cases = "abc";
+	std::string cases = "abc"; // and t (tight mode), not in the default set (its bake takes a while)
 };
 
 struct Result
@@ -66,13 +76,17 @@ struct Result
 	int insideWorst = 0;
 	int nanNodes = 0;
 	double meanGapMm = 0.0; // mean distance of resting nodes (within 10 cm of the skin) above the mesh surface
+	int nearSkin = 0;       // nodes within 5 mm of the skin at the end (issue 14: on the union they float 11-15 mm off)
+	double nearSkinMedianMm = 0.0; // their median gap
 	double minZeta = 0.0;   // smallest zeta over all nodes and ellipsoids at the end (ellipsoid runs)
 	bodyfit::metrics::ContactMetrics contacts; // at the end (the scene runner's contact rule for the collider)
 	int firstMedianStep = 0; // medians are over steps [firstMedianStep, steps)
 };
 
-const char* caseName(ColliderKind kind)
+const char* caseName(ColliderKind kind, bool tight)
 {
+	if (tight)
+		return "(t) btEllipsoidClothCollider, TIGHT_SKIN (brute-force field)";
 	switch (kind)
 	{
 	case ColliderKind::Ellipsoids:
@@ -146,45 +160,112 @@ double restingGapMm(const bodyfit::drape::DrapeSimulation& sim)
 	return count ? 1e3 * sum / count : 0.0;
 }
 
-Result runCase(ColliderKind kind, const Settings& s, const bodyfit::drape::BodyData& body)
+/// Nodes within 5 mm of the skin (outside or in) at the end, and their median signed gap in mm.
+std::pair<int, double> nearSkinNodes(const bodyfit::drape::DrapeSimulation& sim)
 {
-	bodyfit::drape::DrapeSimulation sim(patchScene(kind, s, body.mesh), body);
-	Result r;
-	r.name = caseName(kind);
-	r.settings = caseSettings(kind, s, body.ellipsoids.size());
-	r.nodes = sim.nodeCount();
-	std::vector<double> stepMs, collMs, colliderMs, wallStepMs, wallCollMs;
+	std::vector<int> all(std::size_t(sim.nodeCount()));
+	for (int i = 0; i < sim.nodeCount(); ++i)
+		all[std::size_t(i)] = i;
+	std::vector<double> near;
+	for (double d : sim.skinDistances(all))
+		if (std::abs(d) <= 0.005)
+			near.push_back(d);
+	return {int(near.size()), near.empty() ? 0.0 : 1e3 * bodyfit::median(near)};
+}
+
+/// Attaches the field to the collider's compound (the collider reads it from the next substep on).
+void attachSkinField(bodyfit::drape::DrapeSimulation& sim, const btSkinDistanceField* field)
+{
+	btEllipsoidClothCollider* collider = sim.ellipsoidCollider();
+	btEllipsoidCompoundShape* compound =
+		collider ? dynamic_cast<btEllipsoidCompoundShape*>(collider->getBody()->getCollisionShape()) : nullptr;
+	const char* why = "no ellipsoid collider";
+	if (!compound || !compound->setSkinField(field, false, &why) || collider->getActiveSkinField() != field)
+		throw std::runtime_error(std::string("colliders_patch (t): the skin field was not taken: ") + why);
+}
+
+/// One case's simulation and its per-step records; `field` (not 0) runs (a)'s collider in TIGHT_SKIN mode on it.
+class CaseRun
+{
+public:
+	CaseRun(ColliderKind kind, const Settings& s, const bodyfit::drape::BodyData& body, const btSkinDistanceField* field)
+		: s_(s), sim_(patchScene(kind, s, body.mesh), body)
+	{
+		if (field)
+			attachSkinField(sim_, field);
+		r_.name = caseName(kind, field != nullptr);
+		r_.settings = caseSettings(kind, s, body.ellipsoids.size()) + (field ? "; TIGHT_SKIN" : "");
+		r_.nodes = sim_.nodeCount();
+	}
+
+	/// One step of the simulation and its records.
+	void step()
+	{
+		const bodyfit::drape::StepStats st = sim_.step();
+		stepMs_.push_back(st.cpuSeconds * 1e3);
+		wallStepMs_.push_back(st.seconds * 1e3);
+		collMs_.push_back(st.collisionCpuSeconds * 1e3);
+		colliderMs_.push_back(st.colliderCpuSeconds * 1e3);
+		wallCollMs_.push_back(st.collisionSeconds * 1e3);
+		r_.insideWorst = std::max(r_.insideWorst, sim_.sample().insideBody);
+		std::cerr << "  " << r_.name << ": step " << stepMs_.size() << "/" << s_.steps << ", "
+				  << bodyfit_bench::fmt(stepMs_.back(), 1) << " ms CPU\n";
+	}
+
+	/// The end state and the medians over the steps after the cloth can first touch the head (free fall over
+	/// `drop`), so short runs are not dominated by contact-free steps.
+	Result finish()
+	{
+		const bodyfit::drape::ClothSample end = sim_.sample();
+		r_.insideEnd = end.insideBody;
+		r_.nanNodes = end.nanNodes;
+		r_.minZeta = end.minZeta;
+		const int firstContact = std::min(s_.steps - 1, int(std::ceil(std::sqrt(2.0 * s_.drop / 9.81) / s_.dt)));
+		auto contactMedian = [&](const std::vector<double>& v) {
+			return bodyfit::median(std::vector<double>(v.begin() + firstContact, v.end()));
+		};
+		r_.msPerStep = contactMedian(stepMs_);
+		r_.collisionMsPerStep = contactMedian(collMs_);
+		r_.colliderMsPerStep = contactMedian(colliderMs_);
+		r_.wallMsPerStep = contactMedian(wallStepMs_);
+		r_.wallCollisionMsPerStep = contactMedian(wallCollMs_);
+		r_.firstMedianStep = firstContact;
+		r_.meanGapMm = restingGapMm(sim_);
+		std::tie(r_.nearSkin, r_.nearSkinMedianMm) = nearSkinNodes(sim_);
+		r_.contacts = sim_.contacts();
+		return r_;
+	}
+
+private:
+	const Settings& s_;
+	bodyfit::drape::DrapeSimulation sim_;
+	Result r_;
+	std::vector<double> stepMs_, collMs_, colliderMs_, wallStepMs_, wallCollMs_;
+};
+
+Result runCase(ColliderKind kind, const Settings& s, const bodyfit::drape::BodyData& body,
+			   const btSkinDistanceField* field = nullptr)
+{
+	CaseRun run(kind, s, body, field);
+	for (int step = 0; step < s.steps; ++step)
+		run.step();
+	return run.finish();
+}
+
+/// (a) and (t) stepped in turn (which goes first alternates per step), so both see the same machine load: their
+/// per-node cost ratio is the measurement.
+std::pair<Result, Result> runPaired(const Settings& s, const bodyfit::drape::BodyData& body, const btSkinDistanceField* field)
+{
+	CaseRun loose(ColliderKind::Ellipsoids, s, body, nullptr);
+	CaseRun tight(ColliderKind::Ellipsoids, s, body, field);
 	for (int step = 0; step < s.steps; ++step)
 	{
-		const bodyfit::drape::StepStats st = sim.step();
-		stepMs.push_back(st.cpuSeconds * 1e3);
-		wallStepMs.push_back(st.seconds * 1e3);
-		collMs.push_back(st.collisionCpuSeconds * 1e3);
-		colliderMs.push_back(st.colliderCpuSeconds * 1e3);
-		wallCollMs.push_back(st.collisionSeconds * 1e3);
-		r.insideWorst = std::max(r.insideWorst, sim.sample().insideBody);
-		std::cerr << "  " << r.name << ": step " << step + 1 << "/" << s.steps << ", " << bodyfit_bench::fmt(stepMs.back(), 1)
-				  << " ms CPU\n";
+		CaseRun& first = step % 2 ? tight : loose;
+		CaseRun& second = step % 2 ? loose : tight;
+		first.step();
+		second.step();
 	}
-	const bodyfit::drape::ClothSample end = sim.sample();
-	r.insideEnd = end.insideBody;
-	r.nanNodes = end.nanNodes;
-	r.minZeta = end.minZeta;
-	// Medians over the steps after the cloth can first touch the head (free fall over `drop`), so short runs are
-	// not dominated by contact-free steps.
-	const int firstContact = std::min(s.steps - 1, int(std::ceil(std::sqrt(2.0 * s.drop / 9.81) / s.dt)));
-	auto contactMedian = [&](const std::vector<double>& v) {
-		return bodyfit::median(std::vector<double>(v.begin() + firstContact, v.end()));
-	};
-	r.msPerStep = contactMedian(stepMs);
-	r.collisionMsPerStep = contactMedian(collMs);
-	r.colliderMsPerStep = contactMedian(colliderMs);
-	r.wallMsPerStep = contactMedian(wallStepMs);
-	r.wallCollisionMsPerStep = contactMedian(wallCollMs);
-	r.firstMedianStep = firstContact;
-	r.meanGapMm = restingGapMm(sim);
-	r.contacts = sim.contacts();
-	return r;
+	return {loose.finish(), tight.finish()};
 }
 
 Settings settingsFrom(const bodyfit_bench::Context& ctx)
@@ -201,8 +282,8 @@ Settings settingsFrom(const bodyfit_bench::Context& ctx)
 	s.meshMargin = ctx.number("--mesh-margin", s.meshMargin, 0.0, 1.0);
 	s.kKHR = ctx.number("--kkhr", s.kKHR, 0.0, 1.0);
 	s.cases = ctx.text("--cases", s.cases);
-	if (s.cases.empty() || s.cases.find_first_not_of("abc") != std::string::npos)
-		throw bodyfit_cli::UsageError("--cases: expected letters from \"abc\", got \"" + s.cases + "\"");
+	if (s.cases.empty() || s.cases.find_first_not_of("abct") != std::string::npos)
+		throw bodyfit_cli::UsageError("--cases: expected letters from \"abct\", got \"" + s.cases + "\"");
 	return s;
 }
 
@@ -217,7 +298,7 @@ std::string gapCell(const bodyfit::metrics::GapSummary& gap, double metres)
 BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 								 "issue 4: 100x100 patch dropped on the body, 2 s at 60 Hz: ellipsoid collider vs Bullet "
 								 "SDF_RS on the BVH mesh and on the same compound (--quick: 50x50, 1 s)",
-								 {"--cases", "LETTERS", "subset of abc to run (default abc)"},
+								 {"--cases", "LETTERS", "subset of abct to run (default abc; t = (a) in TIGHT_SKIN mode on a brute-force skin field)"},
 								 {"--steps", "N", "steps of 1/60 s (default 120, --quick 60)"},
 								 {"--resolution", "N", "patch nodes per side (default 100, --quick 50)"},
 								 {"--voxel", "M", "sparse-SDF voxel of the Bullet paths, metres (default 0.02)"},
@@ -260,26 +341,51 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 	body.meshPath = meshPath;
 	body.ellipsoidSource = source;
 	std::vector<Result> results;
-	if (cases.find('a') != std::string::npos)
+	bodyfit_bench::BruteForceBake bake;
+	if (cases.find('t') != std::string::npos)
+	{
+		std::cerr << "colliders_patch: brute-force skin field bake (h 5 mm, clamp 12 mm)\n";
+		bake = bodyfit_bench::bruteForceSkinField(mesh.full, ellipsoids, s.skin);
+		std::cout << "(t) field: BRUTE-FORCE bake in the bench (exact signed mesh distance at the lattice points), "
+				  << bake.storedBricks << " of " << bake.bricks << " bricks stored, "
+				  << bodyfit_bench::fmt(bake.seconds, 1) << " s; Lipschitz bound "
+				  << bodyfit_bench::fmt(double(bake.field->getLipschitz()), 3) << ", seam "
+				  << bodyfit_bench::fmt(double(bake.field->getSeam()) * 1e3, 4) << " mm, max error (band) "
+				  << bodyfit_bench::fmt(bake.maxError * 1e3, 3) << " mm\n\n";
+	}
+	const bool paired = cases.find('a') != std::string::npos && bake.field;
+	Result pairedTight;
+	if (paired)
+	{
+		const std::pair<Result, Result> both = runPaired(s, body, bake.field.get());
+		results.push_back(both.first);
+		pairedTight = both.second;
+	}
+	else if (cases.find('a') != std::string::npos)
 		results.push_back(runCase(ColliderKind::Ellipsoids, s, body));
 	if (cases.find('b') != std::string::npos)
 		results.push_back(runCase(ColliderKind::MeshBvh, s, body));
 	if (cases.find('c') != std::string::npos)
 		results.push_back(runCase(ColliderKind::EllipsoidsSdf, s, body));
+	if (paired)
+		results.push_back(pairedTight);
+	else if (bake.field)
+		results.push_back(runCase(ColliderKind::Ellipsoids, s, body, bake.field.get()));
 
 	bodyfit_bench::Table t({"collider", "ms/step (CPU)", "collision ms/step (CPU)", "collision ns/node",
 							"of which our collider ns/node", "ms/step (wall)", "collision ms/step (wall)", "inside mesh (end)", "inside mesh (worst)",
-							"NaN nodes", "mean gap of resting nodes (mm)", "contact nodes", "contact gap mean (mm)",
+							"NaN nodes", "mean gap of resting nodes (mm)", "nodes within 5 mm of the skin", "their median gap (mm)", "contact nodes", "contact gap mean (mm)",
 							"contact gap p95 (mm)", "contact gap max (mm)",
 							"min zeta (end)", "settings"});
 	for (const Result& r : results)
 		t.addRow({r.name, bodyfit_bench::fmt(r.msPerStep, 3), bodyfit_bench::fmt(r.collisionMsPerStep, 3),
 				  bodyfit_bench::fmt(r.collisionMsPerStep * 1e6 / std::max(1, r.nodes), 1),
-				  r.name.rfind("(a)", 0) == 0 ? bodyfit_bench::fmt(r.colliderMsPerStep * 1e6 / std::max(1, r.nodes), 1)
+				  r.name.rfind("(a)", 0) == 0 || r.name.rfind("(t)", 0) == 0 ? bodyfit_bench::fmt(r.colliderMsPerStep * 1e6 / std::max(1, r.nodes), 1)
 											: std::string("-"),
 				  bodyfit_bench::fmt(r.wallMsPerStep, 3), bodyfit_bench::fmt(r.wallCollisionMsPerStep, 3),
 				  bodyfit_bench::fmtInt(r.insideEnd),
 				  bodyfit_bench::fmtInt(r.insideWorst), bodyfit_bench::fmtInt(r.nanNodes), bodyfit_bench::fmt(r.meanGapMm, 1),
+				  bodyfit_bench::fmtInt(r.nearSkin), bodyfit_bench::fmt(r.nearSkinMedianMm, 2),
 				  bodyfit_bench::fmtInt(r.contacts.contactNodes),
 				  gapCell(r.contacts.gap, r.contacts.gap.mean), gapCell(r.contacts.gap, r.contacts.gap.p95),
 				  gapCell(r.contacts.gap, r.contacts.gap.max),
@@ -293,5 +399,13 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 				  << "x over (b), "
 				  << bodyfit_bench::fmt(results[2].collisionMsPerStep / std::max(1e-9, results[0].collisionMsPerStep), 1)
 				  << "x over (c)\n";
+	const auto tight = std::find_if(results.begin(), results.end(), [](const Result& r) { return r.name.rfind("(t)", 0) == 0; });
+	const auto loose = std::find_if(results.begin(), results.end(), [](const Result& r) { return r.name.rfind("(a)", 0) == 0; });
+	if (tight != results.end() && loose != results.end())
+		std::cout << "\ncollider cost, TIGHT_SKIN (t) / ELLIPSOIDS (a): "
+				  << bodyfit_bench::fmt(tight->colliderMsPerStep / std::max(1e-9, loose->colliderMsPerStep), 2)
+				  << "x per node (" << bodyfit_bench::fmt(tight->colliderMsPerStep * 1e6 / std::max(1, tight->nodes), 1)
+				  << " vs " << bodyfit_bench::fmt(loose->colliderMsPerStep * 1e6 / std::max(1, loose->nodes), 1)
+				  << " ns/node)\n";
 	return 0;
 }

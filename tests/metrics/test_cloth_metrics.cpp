@@ -262,3 +262,84 @@ TEST_CASE("metrics: bad input is a one-line InvalidInputError", "[metrics]")
 					  Catch::Contains("ellipsoid 0 is not valid"));
 	CHECK_THROWS_AS(BodyReference(bodyfit::TriMesh{}), bodyfit::InvalidInputError);
 }
+
+namespace
+{
+
+/// The cube [-0.1, 0.1]^3 written out by hand: 8 corners, 2 triangles per face.
+bodyfit::TriMesh handMadeCube()
+{
+	bodyfit::TriMesh m;
+	m.V.resize(8, 3);
+	for (int i = 0; i < 8; ++i)
+		m.V.row(i) << ((i & 1) ? 0.1 : -0.1), ((i & 2) ? 0.1 : -0.1), ((i & 4) ? 0.1 : -0.1);
+	m.F.resize(12, 3);
+	m.F << 0, 2, 1, 1, 2, 3, // z = -0.1
+		4, 5, 6, 5, 7, 6,    // z = +0.1
+		0, 1, 4, 1, 5, 4,    // y = -0.1
+		2, 6, 3, 3, 6, 7,    // y = +0.1
+		0, 4, 2, 2, 4, 6,    // x = -0.1
+		1, 3, 5, 3, 7, 5;    // x = +0.1
+	return m;
+}
+
+/// A hand-made cloth: node pairs joined by links, in the body frame, carried into the world by `pose`.
+struct LinkedCloth
+{
+	btSoftBodyWorldInfo info;
+	std::unique_ptr<btSoftBody> cloth;
+
+	LinkedCloth(const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>>& links, const btTransform& pose)
+	{
+		std::vector<btVector3> nodes;
+		for (const auto& l : links)
+			for (const Eigen::Vector3d& p : {l.first, l.second})
+				nodes.push_back(pose * btVector3(btScalar(p.x()), btScalar(p.y()), btScalar(p.z())));
+		const std::vector<btScalar> masses(nodes.size(), btScalar(1));
+		cloth = std::make_unique<btSoftBody>(&info, int(nodes.size()), nodes.data(), masses.data());
+		for (int i = 0; i < int(links.size()); ++i)
+			cloth->appendLink(2 * i, 2 * i + 1);
+	}
+};
+
+} // namespace
+
+TEST_CASE("metrics: cloth edges crossing a hand-made cube, and the deepest crossing", "[metrics][crossings]")
+{
+	using Segment = std::pair<Eigen::Vector3d, Eigen::Vector3d>;
+	const std::vector<Segment> links = {
+		{{-0.2, 0, 0}, {0.2, 0, 0}},          // through the centre (and the faces' diagonals): 0.1 deep at its midpoint
+		{{-0.2, 0.08, 0}, {0.2, 0.08, 0}},    // 2 cm under the top face: crosses, 0.02 deep
+		{{0.12, 0.05, 0.01}, {0.05, 0.12, 0.01}}, // across the corner region of the +x +y edge: 0.015 deep
+		{{-0.2, 0.15, 0}, {0.2, 0.15, 0}},    // above the cube: its ends are close enough to be tested, no hit
+		{{0, 0, 0}, {0.2, 0, 0}},             // one end inside: a penetrating node, not a crossing edge
+		{{0.3, 0.3, 0.3}, {0.31, 0.3, 0.3}},  // far and short: skipped by the distance test
+	};
+	for (const btTransform& pose : {btTransform::getIdentity(), bodyPose()})
+	{
+		BodyReference body(handMadeCube());
+		body.setPose(pose);
+		LinkedCloth cloth(links, pose);
+		const EdgeCrossings c = measureEdgeCrossings(*cloth.cloth, body);
+		CHECK(c.measured);
+		CHECK(c.links == 6);
+		CHECK(c.crossing == 3);
+		// The depth is sampled at 9 points of the inside stretch; the deepest of these is the stretch's midpoint for
+		// the first link (0.1 from every face it meets). Float node coordinates: kFloatTolerance.
+		CHECK(c.maxDepth == Approx(0.1).margin(kFloatTolerance));
+		// The JSON carries them.
+		const nlohmann::json j = toJson(measureCloth(*cloth.cloth, body, ContactOptions{ContactRule::None, 0.0}));
+		CHECK(j["links"].get<int>() == 6);
+		CHECK(j["links_crossing_body"].get<int>() == 3);
+		CHECK(j["max_link_crossing_depth_m"].get<double>() == Approx(0.1).margin(kFloatTolerance));
+	}
+	// Without the deep link the deepest crossing is the next one: 2 cm under the top face.
+	BodyReference body(handMadeCube());
+	LinkedCloth shallow({links[1], links[2]}, btTransform::getIdentity());
+	const EdgeCrossings c = measureEdgeCrossings(*shallow.cloth, body);
+	CHECK(c.crossing == 2);
+	CHECK(c.maxDepth == Approx(0.02).margin(kFloatTolerance));
+	// A ClothMetrics built without the crossings writes null for them.
+	const nlohmann::json none = toJson(ClothMetrics{});
+	CHECK(none["links_crossing_body"].is_null());
+}

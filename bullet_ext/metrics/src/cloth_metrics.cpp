@@ -86,15 +86,130 @@ std::vector<int> nodesWithRigidContacts(const btSoftBody& cloth)
 
 nlohmann::json finiteOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
+/// Segment a + t (b - a), t in [0, 1], against triangle (p0, p1, p2), closed (edges and vertices count); Moeller and
+/// Trumbore's barycentric solve. \return t, or a negative value when they do not meet (parallel: no hit).
+double segmentTriangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& p0,
+					   const Eigen::Vector3d& p1, const Eigen::Vector3d& p2)
+{
+	const Eigen::Vector3d d = b - a, e1 = p1 - p0, e2 = p2 - p0;
+	const Eigen::Vector3d h = d.cross(e2);
+	const double det = e1.dot(h);
+	const double scale = e1.norm() * e2.norm() * d.norm();
+	if (!(std::abs(det) > 1e-14 * scale))
+		return -1.0;
+	const Eigen::Vector3d s = a - p0;
+	const double u = s.dot(h) / det;
+	if (u < 0.0 || u > 1.0)
+		return -1.0;
+	const Eigen::Vector3d q = s.cross(e1);
+	const double v = d.dot(q) / det;
+	if (v < 0.0 || u + v > 1.0)
+		return -1.0;
+	const double t = e2.dot(q) / det;
+	return t >= 0.0 && t <= 1.0 ? t : -1.0;
+}
+
 } // namespace
+
+/// The mesh's triangles binned by their boxes into cubic cells (CSR lists), for segment queries.
+class BodyReference::TriangleGrid
+{
+public:
+	explicit TriangleGrid(const TriMesh& mesh);
+	/// Hit parameters of the segment a-b against the triangles of the cells under its box, one per triangle, sorted.
+	std::vector<double> hits(const TriMesh& mesh, const Eigen::Vector3d& a, const Eigen::Vector3d& b) const;
+
+private:
+	Eigen::Vector3d origin_;
+	double cell_ = 1.0;
+	int dims_[3] = {1, 1, 1};
+	std::vector<int> start_;
+	std::vector<int> faces_;
+
+	int cellOf(double x, int k) const { return std::clamp(int(std::floor((x - origin_[k]) / cell_)), 0, dims_[k] - 1); }
+	int index(int x, int y, int z) const { return (z * dims_[1] + y) * dims_[0] + x; }
+	/// Calls f(cell) for every cell under the box [lo, hi].
+	template <class F>
+	void forCells(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, F f) const
+	{
+		for (int z = cellOf(lo.z(), 2); z <= cellOf(hi.z(), 2); ++z)
+			for (int y = cellOf(lo.y(), 1); y <= cellOf(hi.y(), 1); ++y)
+				for (int x = cellOf(lo.x(), 0); x <= cellOf(hi.x(), 0); ++x)
+					f(index(x, y, z));
+	}
+};
+
+BodyReference::TriangleGrid::TriangleGrid(const TriMesh& mesh)
+{
+	const Eigen::Vector3d lo = mesh.V.colwise().minCoeff().transpose(), hi = mesh.V.colwise().maxCoeff().transpose();
+	const Eigen::Vector3d extent = (hi - lo).cwiseMax(1e-9);
+	double meanEdge = 0.0;
+	for (int f = 0; f < mesh.F.rows(); ++f)
+		meanEdge += (mesh.V.row(mesh.F(f, 0)) - mesh.V.row(mesh.F(f, 1))).norm();
+	meanEdge /= double(mesh.F.rows());
+	// Cells of two mean edges (a triangle spans few), but no more than 128 along the longest side.
+	cell_ = std::max(2.0 * meanEdge, extent.maxCoeff() / 128.0);
+	origin_ = lo;
+	for (int k = 0; k < 3; ++k)
+		dims_[k] = std::max(1, int(std::ceil(extent[k] / cell_)));
+	std::vector<std::vector<int>> lists(size_t(dims_[0]) * dims_[1] * dims_[2]);
+	for (int f = 0; f < mesh.F.rows(); ++f)
+	{
+		Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose(), b = a;
+		for (int j = 1; j < 3; ++j)
+		{
+			a = a.cwiseMin(mesh.V.row(mesh.F(f, j)).transpose());
+			b = b.cwiseMax(mesh.V.row(mesh.F(f, j)).transpose());
+		}
+		forCells(a, b, [&](int c) { lists[size_t(c)].push_back(f); });
+	}
+	start_.assign(lists.size() + 1, 0);
+	for (size_t c = 0; c < lists.size(); ++c)
+	{
+		start_[c + 1] = start_[c] + int(lists[c].size());
+		faces_.insert(faces_.end(), lists[c].begin(), lists[c].end());
+	}
+}
+
+std::vector<double> BodyReference::TriangleGrid::hits(const TriMesh& mesh, const Eigen::Vector3d& a,
+													  const Eigen::Vector3d& b) const
+{
+	std::vector<std::pair<int, double>> found; // (face, t): a face listed in several cells is tested once per cell
+	forCells(a.cwiseMin(b), a.cwiseMax(b), [&](int c) {
+		for (int i = start_[size_t(c)]; i < start_[size_t(c) + 1]; ++i)
+		{
+			const int f = faces_[size_t(i)];
+			const double t = segmentTriangle(a, b, mesh.V.row(mesh.F(f, 0)).transpose(), mesh.V.row(mesh.F(f, 1)).transpose(),
+											 mesh.V.row(mesh.F(f, 2)).transpose());
+			if (t >= 0.0)
+				found.emplace_back(f, t);
+		}
+	});
+	std::sort(found.begin(), found.end());
+	found.erase(std::unique(found.begin(), found.end(), [](const auto& x, const auto& y) { return x.first == y.first; }),
+				found.end());
+	std::vector<double> out;
+	for (const auto& hit : found)
+		out.push_back(hit.second);
+	std::sort(out.begin(), out.end());
+	// A hit on an edge or vertex shared by several triangles is one crossing of the surface.
+	out.erase(std::unique(out.begin(), out.end(), [](double x, double y) { return y - x < 1e-9; }), out.end());
+	return out;
+}
 
 BodyReference::BodyReference(TriMesh mesh, std::vector<Ellipsoid> ellipsoids)
 	: mesh_(std::move(mesh)),
 	  ellipsoids_(checkedEllipsoids(ellipsoids)),
 	  pose_(btTransform::getIdentity()),
 	  inside_(mesh_),
-	  distance_(mesh_)
+	  distance_(mesh_),
+	  triangles_(std::make_shared<const TriangleGrid>(mesh_))
 {
+}
+
+std::vector<double> BodyReference::segmentHits(const Eigen::Vector3d& a, const Eigen::Vector3d& b) const
+{
+	return triangles_->hits(mesh_, a, b);
 }
 
 void BodyReference::setPose(const btTransform& bodyToWorld)
@@ -197,9 +312,65 @@ ContactMetrics measureContacts(const btSoftBody& cloth, const BodyReference& bod
 	return c;
 }
 
+namespace
+{
+
+/// Deepest point inside the body along the segment a-b whose triangle hits are `hits` (ascending): the stretches
+/// between hits 1-2, 3-4, ... are inside (both ends are outside), 9 points of each are measured.
+double crossingDepth(const BodyReference& body, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+					 const std::vector<double>& hits)
+{
+	double depth = 0.0;
+	for (size_t k = 0; k + 1 < hits.size(); k += 2)
+		for (int j = 1; j <= 9; ++j)
+		{
+			const double t = hits[k] + (hits[k + 1] - hits[k]) * double(j) / 10.0;
+			const Eigen::Vector3d p = a + t * (b - a);
+			if (body.isInside(p))
+				depth = std::max(depth, body.skinDistance(p));
+		}
+	return depth;
+}
+
+} // namespace
+
+EdgeCrossings measureEdgeCrossings(const btSoftBody& cloth, const BodyReference& body)
+{
+	EdgeCrossings out;
+	out.measured = true;
+	const int n = cloth.m_nodes.size();
+	std::vector<Eigen::Vector3d> local(static_cast<size_t>(n));
+	std::vector<double> distance(static_cast<size_t>(n), -1.0); // -1: non-finite or inside (such links are not crossings)
+	for (int i = 0; i < n; ++i)
+	{
+		local[size_t(i)] = body.toBodyFrame(toEigen(cloth.m_nodes[i].m_x));
+		if (local[size_t(i)].allFinite() && !body.isInside(local[size_t(i)]))
+			distance[size_t(i)] = body.skinDistance(local[size_t(i)]);
+	}
+	const btSoftBody::Node* base = n > 0 ? &cloth.m_nodes[0] : nullptr;
+	for (int l = 0; l < cloth.m_links.size(); ++l)
+	{
+		const int i = int(cloth.m_links[l].m_n[0] - base), j = int(cloth.m_links[l].m_n[1] - base);
+		const Eigen::Vector3d &a = local[size_t(i)], &b = local[size_t(j)];
+		if (!a.allFinite() || !b.allFinite())
+			continue;
+		++out.links;
+		if (distance[size_t(i)] < 0.0 || distance[size_t(j)] < 0.0 ||
+			distance[size_t(i)] + distance[size_t(j)] > (b - a).norm())
+			continue;
+		const std::vector<double> hits = body.segmentHits(a, b);
+		if (hits.empty())
+			continue;
+		++out.crossing;
+		out.maxDepth = std::max(out.maxDepth, crossingDepth(body, a, b, hits));
+	}
+	return out;
+}
+
 ClothMetrics measureCloth(const btSoftBody& cloth, const BodyReference& body, const ContactOptions& options)
 {
-	return ClothMetrics{measurePenetration(cloth, body), measureContacts(cloth, body, options)};
+	return ClothMetrics{measurePenetration(cloth, body), measureContacts(cloth, body, options),
+						measureEdgeCrossings(cloth, body)};
 }
 
 nlohmann::json toJson(const ClothMetrics& m)
@@ -220,6 +391,10 @@ nlohmann::json toJson(const ClothMetrics& m)
 	j["median_contact_gap_m"] = gap(g.median);
 	j["p95_contact_gap_m"] = gap(g.p95);
 	j["max_contact_gap_m"] = gap(g.max);
+	const auto crossing = [&](auto v) { return m.crossings.measured ? nlohmann::json(v) : nlohmann::json(nullptr); };
+	j["links"] = crossing(m.crossings.links);
+	j["links_crossing_body"] = crossing(m.crossings.crossing);
+	j["max_link_crossing_depth_m"] = crossing(m.crossings.maxDepth);
 	return j;
 }
 

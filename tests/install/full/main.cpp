@@ -11,6 +11,7 @@
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 #include "bodyfit/bullet_ext/btEllipsoidShape.h"
 #include "bodyfit/bullet_ext/btFloatRange.h"
+#include "bodyfit/bullet_ext/btSkinDistanceField.h"
 #include "bodyfit/bullet_ext/btTiming.h"
 #include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/components.h"

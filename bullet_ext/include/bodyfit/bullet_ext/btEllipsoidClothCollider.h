@@ -34,6 +34,14 @@ struct btEllipsoidClothStats
 	double m_collisionCpuSeconds; ///< the same as thread CPU time (robust on a busy machine; 0 where unsupported)
 	btScalar m_minZeta;      ///< smallest zeta over processed nodes after the response (>= 1 when the guarantee holds)
 	int m_nonFiniteNodes;    ///< nodes found with NaN/Inf coordinates (left untouched, not counted elsewhere)
+	// Tight mode (Config::m_surface TIGHT_SKIN with a skin field): m_nodesCorrected counts nodes whose path met the
+	// skin, m_nodesPushedOut nodes that started within it; zeta is not tracked (nodes rest inside the union).
+	btScalar m_minSkinField; ///< smallest field value over nodes the field decided, after the response (>= skin
+							 ///< offset - the field tolerance when the guarantee holds); SIMD_INFINITY if none
+	int m_skinFallbacks;     ///< push-outs the field could not do (vanishing gradient, deep in the clamp, no
+							 ///< convergence): the union push-out moved the node instead
+	int m_skinMarchLimits;   ///< path marches that reached their step limit: the node stopped at the last point
+							 ///< known outside (conservative)
 
 	btEllipsoidClothStats() { reset(); }
 	void reset();
@@ -80,6 +88,16 @@ public:
 		PAPER_EQ10 = 1
 	};
 
+	/// The surface the collider keeps the cloth off (bullet_ext/README.md, "Tight skin surface").
+	enum SurfaceMode
+	{
+		/// The skin: the union of ellipsoids is only the broad phase, contact is decided on the body's skin distance
+		/// field (btEllipsoidCompoundShape::setSkinField). A compound without a field uses ELLIPSOIDS.
+		TIGHT_SKIN = 0,
+		/// The union of ellipsoids (Gong et al. 2018), whether or not the compound has a field.
+		ELLIPSOIDS = 1
+	};
+
 	/// The Config::m_friction value that means "as Bullet combines it" (kDF x body friction).
 	static btScalar kBulletFriction() { return btScalar(-1); }
 
@@ -96,13 +114,16 @@ public:
 		/// the collider gives a node: -m_node (v_after - v_before) at the node (default true; static and kinematic
 		/// bodies are never affected).
 		bool m_applyReactionToBody;
+		/// TIGHT_SKIN (default; takes effect when the compound has a skin field) or ELLIPSOIDS.
+		SurfaceMode m_surface;
 
 		Config()
 			: m_skinOffset(btScalar(0.002)),
 			  m_friction(kBulletFriction()),
 			  m_velocityRule(REMOVE_NORMAL_COULOMB),
 			  m_disableBulletResponse(true),
-			  m_applyReactionToBody(true)
+			  m_applyReactionToBody(true),
+			  m_surface(TIGHT_SKIN)
 		{
 		}
 	};
@@ -130,6 +151,13 @@ public:
 	bool setConfig(const Config& config, const char** error = 0);
 	/// The warning of validateConfig for the current Config (0 if none).
 	const char* getConfigWarning() const { return m_configWarning; }
+
+	/// The skin field the collider decides contact on: the compound's (btEllipsoidCompoundShape::getSkinField) when
+	/// Config::m_surface is TIGHT_SKIN, else 0 (the ellipsoid response). Read again every substep.
+	const btSkinDistanceField* getActiveSkinField() const;
+	/// How far below the skin offset a node decided by `field` may end (the guarantee's tolerance): the field's seam,
+	/// four quanta and the rounding of btScalar coordinates over the grid.
+	static btScalar skinFieldTolerance(const btSkinDistanceField& field);
 
 	/// True once the body was found removed from the world it was in at install: the collider then stops colliding
 	/// and never reads the body again (it may be deleted; uninstallCollider still removes the collider).

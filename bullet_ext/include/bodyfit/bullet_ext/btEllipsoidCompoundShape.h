@@ -15,6 +15,7 @@ and btEllipsoidWorldCache: the same ellipsoids in world space for one body pose,
 #include "LinearMath/btTransform.h"
 
 #include "bodyfit/bullet_ext/btEllipsoidShape.h"
+#include "bodyfit/bullet_ext/btSkinDistanceField.h"
 
 #if defined(__SSE__) && !defined(BT_USE_DOUBLE_PRECISION)
 #include <xmmintrin.h>
@@ -72,6 +73,8 @@ protected:
 	btAlignedObjectArray<btMatrix3x3> m_unscaledBases;
 	btScalar m_childMargin;
 	int m_analyticRevision;
+	const btSkinDistanceField* m_skinField; ///< the skin's distance field in this compound's frame, or 0
+	bool m_ownsSkinField;
 
 	void computeLocalData(int index);
 	/// Semi-axes and basis of ellipsoid `index` under the current local scaling.
@@ -110,8 +113,23 @@ public:
 	}
 	btScalar getChildMargin() const { return m_childMargin; }
 
-	/// Increases whenever the analytic data changes (add, set, remove, local scaling).
+	/// Increases whenever the analytic data changes (add, set, remove, local scaling, skin field).
 	int getAnalyticRevision() const { return m_analyticRevision; }
+
+	/// Attaches the body's skin distance field (body frame = this compound's frame), kept with the ellipsoids so the
+	/// cloth collider's tight mode finds it (bullet_ext/README.md, "Tight skin surface"); 0 detaches. \param owned the
+	/// compound deletes the field (with `delete`) when it is replaced, detached or the compound is destroyed.
+	/// Refused (false, *error set to a one-line reason, nothing taken: the caller still owns the field) for a field
+	/// that is not valid (btSkinDistanceField::set failed or never ran) or while the local scaling is not (1, 1, 1):
+	/// the field describes the unscaled body.
+	bool setSkinField(const btSkinDistanceField* field, bool owned, const char** error = 0);
+	/// The attached field, or 0 when there is none or the local scaling is not (1, 1, 1) (a scaled compound keeps
+	/// its field but does not use it: distances do not scale with a non-uniform scaling; set the scaling back to use
+	/// it again).
+	const btSkinDistanceField* getSkinField() const
+	{
+		return m_skinField && m_localScaling == btVector3(1, 1, 1) ? m_skinField : 0;
+	}
 
 	/// zeta of ellipsoid i at a compound-local point.
 	btScalar zeta(int index, const btVector3& localPoint) const;

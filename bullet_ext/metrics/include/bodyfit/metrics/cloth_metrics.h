@@ -7,7 +7,9 @@
 ///     (Eberly distance) and the smallest zeta over all nodes;
 ///   * NaN/Inf nodes (position or velocity);
 ///   * contact nodes (ContactRule) and their signed gap to the skin mesh (MeshDistanceGrid, negative inside): mean,
-///     median, p95, max.
+///     median, p95, max;
+///   * cloth edges (btSoftBody::m_links) that cross the skin: both ends outside the mesh, the segment through the
+///     body (segment-triangle tests over a uniform grid of the mesh's triangles), and the deepest such crossing.
 /// Every measure is taken in the body frame: world node positions are carried by the inverse of the body pose, so
 /// the mesh and ellipsoids are prepared once (inside test and distance grid) and the body may move.
 /// Bullet types appear at this API only as btSoftBody and btTransform; the geometry inside is Eigen double, like the
@@ -60,14 +62,21 @@ public:
 	int countInside(const Eigen::MatrixX3d& bodyPoints) const { return inside_.countInside(bodyPoints); }
 	/// Signed distance from a body-frame point to the skin mesh (negative inside).
 	double signedSkinDistance(const Eigen::Vector3d& bodyPoint) const;
+	/// Unsigned distance from a body-frame point to the skin mesh.
+	double skinDistance(const Eigen::Vector3d& bodyPoint) const { return distance_.distance(bodyPoint); }
+	/// Parameters t in [0, 1] where the body-frame segment a + t (b - a) meets the mesh, ascending (a hit on an edge or
+	/// vertex shared by several triangles is listed once: hits closer than 1e-9 in t are merged).
+	std::vector<double> segmentHits(const Eigen::Vector3d& a, const Eigen::Vector3d& b) const;
 
 private:
+	class TriangleGrid;
 	TriMesh mesh_;
 	std::vector<Ellipsoid> ellipsoids_;
 	btTransform pose_;
 	Eigen::Isometry3d worldToBody_ = Eigen::Isometry3d::Identity();
 	MeshInsideTest inside_;
 	MeshDistanceGrid distance_;
+	std::shared_ptr<const TriangleGrid> triangles_; ///< uniform grid of the triangles' boxes (segmentHits)
 };
 
 /// Penetration and validity counts at one instant.
@@ -113,11 +122,21 @@ struct ContactMetrics
 	GapSummary gap;
 };
 
+/// Cloth edges through the body: links whose two end nodes are outside the mesh but whose segment meets it.
+struct EdgeCrossings
+{
+	bool measured = false;  ///< false: not measured (toJson writes null), e.g. a ClothMetrics built without them
+	int links = 0;          ///< links with two finite end nodes
+	int crossing = 0;       ///< of those, both ends outside the body mesh and the segment meets a triangle
+	double maxDepth = 0.0;  ///< deepest point inside the body along a crossing link (metres; 0 when none crosses)
+};
+
 /// Everything measured on one soft body at one instant.
 struct ClothMetrics
 {
 	PenetrationCounts penetration;
 	ContactMetrics contacts;
+	EdgeCrossings crossings;
 };
 
 /// Inside/NaN counts now.
@@ -137,12 +156,19 @@ GapSummary summarizeGaps(const std::vector<double>& gaps);
 /// Contact nodes and their gap summary now.
 ContactMetrics measureContacts(const btSoftBody& cloth, const BodyReference& body, const ContactOptions& options);
 
+/// Links crossing the skin now. A link is skipped without triangle tests when its ends' distances to the skin sum
+/// to more than its length (no point of the segment can then reach the surface); the others are tested against the
+/// triangles in the grid cells under the segment's box. The depth of a crossing is the largest distance to the skin
+/// over 9 points of each inside stretch between consecutive hits (hit pairs along the segment).
+EdgeCrossings measureEdgeCrossings(const btSoftBody& cloth, const BodyReference& body);
+
 /// Every measure now.
 ClothMetrics measureCloth(const btSoftBody& cloth, const BodyReference& body, const ContactOptions& options = {});
 
 /// The metrics as JSON: nodes, nan_nodes, nodes_inside_body, nodes_inside_ellipsoids, min_zeta,
 /// ellipsoid_penetration_m, contact_nodes, mean/median/p95/max_contact_gap_m (null where undefined: no
-/// ellipsoids, no contact gaps, infinite zeta).
+/// ellipsoids, no contact gaps, infinite zeta), links, links_crossing_body, max_link_crossing_depth_m (null when
+/// the crossings were not measured).
 nlohmann::json toJson(const ClothMetrics& metrics);
 
 } // namespace bodyfit::metrics

@@ -1,0 +1,307 @@
+/*
+bodyfit: Bullet extension for ellipsoid body colliders. See btSkinFieldResponse.h and bullet_ext/README.md,
+"Tight skin surface".
+The collider's tight mode: the union of ellipsoids stays the broad phase (a node with no candidate ellipsoid is
+never looked at); a candidate node's contact is decided on the skin distance field, in the body frame: the path
+q -> x is sphere-traced to the first point at field = skin offset, a node that starts within the skin is pushed out
+along the field's gradient (Newton), and the existing velocity rule and friction apply with the field's normal.
+*/
+
+#include "src/btSkinFieldResponse.h"
+
+#include "src/btEllipsoidClothColliderCore.h"
+#include "src/btEllipsoidClothResponse.h"
+
+#include "BulletDynamics/Dynamics/btRigidBody.h"
+
+#include <cmath>
+
+namespace
+{
+
+/// Steps of the path march before it stops at the last point known outside (a straight approach needs about 10:
+/// each step closes a fraction 1 / Lipschitz of the remaining gap; only paths grazing the surface need more).
+const int kMaxMarchSteps = 64;
+/// After this many steps a path still within the contact band of the surface is grazing it: the node is in contact
+/// there (the slide of the response carries it on along the surface). Without it such paths crept in steps of a
+/// fraction of the band (colliders_patch: 4% of the marches took 16-64 steps).
+const int kGrazingSteps = 3;
+/// Newton steps of the push-out (a distance field converges in one or two: its slope is about 1).
+const int kMaxNewtonSteps = 8;
+/// Pieces of one slide; a longer slide stops after them (conservative: the node stays outside).
+const int kMaxSlidePieces = 8;
+
+} // namespace
+
+// ---------------------------------------------------------------------------------------------------------------
+// btSkinFieldGeometry
+
+btScalar btEllipsoidClothCollider::skinFieldTolerance(const btSkinDistanceField& field)
+{
+	// Coordinates over the grid are rounded to btScalar: about SIMD_EPSILON x the largest coordinate per operation;
+	// the field's slope (about 1) carries that into its value. 16 of those cover the march's few operations.
+	const btVector3 lo = field.getGridMin().absolute(), hi = field.getGridMax().absolute();
+	const btScalar extent = btMax(lo[lo.maxAxis()], hi[hi.maxAxis()]);
+	return field.getSeam() + btScalar(4) * field.getQuantum() + btScalar(16) * SIMD_EPSILON * extent * field.getLipschitz();
+}
+
+void btSkinFieldGeometry::begin(const btSkinDistanceField* field, btScalar offset, const btTransform& bodyToWorld)
+{
+	m_field = field;
+	if (!field)
+		return;
+	m_offset = offset;
+	m_invLipschitz = btScalar(1) / field->getLipschitz();
+	m_margin = field->getSeam();
+	// Within 1% of a voxel (50 um for the bake's 5 mm) above the offset level is on the surface.
+	m_hitBand = btMax(btScalar(4) * field->getQuantum(), btScalar(0.01) * field->getVoxelSize());
+	// Grazing: within 0.1 of a voxel (0.5 mm for the bake's 5 mm) above the offset level, a fifth of the 1 mm that
+	// tests/bullet_ext/test_skin_field.cpp allows resting cloth above the skin (issue 14).
+	m_contactBand = btScalar(10) * m_hitBand;
+	m_tolerance = btEllipsoidClothCollider::skinFieldTolerance(*field);
+	// Where the field reads +clamp the layout promises a true distance >= min(clamp, s + 2 h), s the bake's skin
+	// offset: stored bricks cover every brick that meets the union grown by s + 2 h within the band (and the union
+	// encloses the skin). The true distance is 1-Lipschitz and the field is within maxError of it, so no point within
+	// min(clamp, s + 2 h) - offset - maxError reads below the offset (0 when the collider's offset is too large for
+	// the bake: the march then stops at the first far point, conservatively).
+	const btScalar farBound = btMin(field->getClamp(), field->getBakeSkinOffset() + btScalar(2) * field->getVoxelSize());
+	m_farStep = btMax(btScalar(0), farBound - offset - field->getMaxError() - m_margin);
+	m_toWorld = bodyToWorld;
+	m_toBody = bodyToWorld.inverse();
+}
+
+bool btSkinFieldGeometry::leavesSurface(const btVector3& q, const btVector3& x, btScalar fx, btVector3& normal) const
+{
+	btVector3 g;
+	m_field->distanceAndGradient(q, g);
+	const btScalar slope = g.length();
+	normal = slope > btScalar(1e-3) ? g / slope : btVector3(0, 0, 0);
+	return fx >= m_offset && g.dot(x - q) >= btScalar(0);
+}
+
+void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPathHit& out) const
+{
+	out.m_outcome = btSkinPathHit::CLEAR;
+	out.m_t = btScalar(0);
+	out.m_point = x;
+	out.m_normal.setValue(0, 0, 0);
+	out.m_limited = false;
+	const btScalar fq = m_field->distance(q);
+	out.m_startValue = fq;
+	out.m_value = fq;
+	if (fq - m_offset < -m_tolerance)
+	{
+		out.m_outcome = btSkinPathHit::START_INSIDE;
+		out.m_point = q;
+		return;
+	}
+	const btVector3 d = x - q;
+	const btScalar len = d.length();
+	if (!(len > btScalar(0)))
+		return;
+	// Sphere tracing: at a point with clearance g (field - offset - seam) no point within g / L of it reads below the
+	// offset (the interpolant is L-Lipschitz inside bricks and jumps by at most the seam between stored bricks; where
+	// it reads +clamp, m_farStep bounds the step instead, see begin()). So the march steps that far along the path and
+	// cannot pass the first crossing. First the cheap case: the clear balls around both ends cover the path.
+	btScalar g, gx;
+	btScalar f = fq, stepQ = stepFrom(fq, g);
+	const btScalar fx = m_field->distance(x);
+	const btScalar stepX = stepFrom(fx, gx);
+	out.m_value = fx;
+	if (stepQ >= btScalar(0) && stepQ + btMax(stepX, btScalar(0)) >= len)
+		return;
+	btScalar s = btScalar(0);
+	for (int step = 0; step < kMaxMarchSteps; ++step)
+	{
+		if (g <= m_hitBand || (step >= kGrazingSteps && g <= m_contactBand))
+		{
+			// A node on the surface moving away from it or along it is not a contact.
+			if (s == btScalar(0) && leavesSurface(q, x, fx, out.m_normal))
+				return;
+			break;
+		}
+		s += stepQ;
+		if (s >= len || s + stepX >= len) // past x, or the clear ball around x covers the rest of the path
+			return;
+		f = m_field->distance(q + d * (s / len));
+		stepQ = stepFrom(f, g);
+		out.m_limited = step + 1 == kMaxMarchSteps; // out of steps: stop at the last point known outside
+	}
+	out.m_outcome = btSkinPathHit::HIT;
+	out.m_t = s / len;
+	out.m_point = q + d * out.m_t;
+	out.m_value = f;
+}
+
+bool btSkinFieldGeometry::pushOut(const btVector3& p, btVector3& out, btScalar& value) const
+{
+	btVector3 g;
+	const btScalar f = m_field->distanceAndGradient(p, g);
+	return newton(p, f, g, out, value);
+}
+
+bool btSkinFieldGeometry::newton(const btVector3& p, btScalar f, const btVector3& gradient, btVector3& out,
+								 btScalar& value) const
+{
+	const btScalar target = m_offset + m_margin + btScalar(0.5) * m_hitBand;
+	btVector3 point = p, g = gradient;
+	for (int step = 0;; ++step)
+	{
+		if (btFabs(f - target) <= btScalar(0.5) * m_hitBand)
+		{
+			out = point;
+			value = f;
+			return true;
+		}
+		const btScalar slope2 = g.length2();
+		if (step == kMaxNewtonSteps || !(slope2 > btScalar(0.01))) // a slope below 0.1: the gradient vanishes
+			return false;
+		point += g * ((target - f) / slope2);
+		f = m_field->distanceAndGradient(point, g);
+	}
+}
+
+btVector3 btSkinFieldGeometry::slide(const btVector3& from, const btVector3& displacement, btScalar& value) const
+{
+	// A piece no longer than offset / L from a point at field >= offset ends at field >= 0, outside the skin (the
+	// zero level encloses it); the push-out there follows the gradient, away from the skin, so no piece crosses the body.
+	const btScalar len = displacement.length();
+	if (!(len > btScalar(0)))
+		return from;
+	const btScalar piece = btMax(m_offset * m_invLipschitz, btScalar(4) * m_hitBand);
+	const btScalar taken = btMin(len, piece * btScalar(kMaxSlidePieces));
+	const int pieces = btMax(1, int(std::ceil(taken / piece)));
+	const btVector3 step = displacement * (taken / len / btScalar(pieces));
+	btVector3 p = from;
+	for (int i = 0; i < pieces; ++i)
+	{
+		btVector3 c = p + step, g;
+		btScalar f = m_field->distanceAndGradient(c, g);
+		if (f - m_offset - m_margin < btScalar(0) && !newton(c, f, g, c, f))
+			break;
+		p = c;
+		value = f;
+	}
+	return p;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// The node response in tight mode (members of btEllipsoidClothColliderCore)
+
+const btSkinDistanceField* btEllipsoidClothCollider::getActiveSkinField() const
+{
+	return static_cast<const btEllipsoidClothColliderCore*>(this)->activeSkinField();
+}
+
+const char* btSkinFieldConfigError(const btEllipsoidClothCollider::Config& config, const btEllipsoidCompoundShape* compound)
+{
+	const btSkinDistanceField* field = compound ? compound->getSkinField() : 0;
+	if (config.m_surface != btEllipsoidClothCollider::TIGHT_SKIN || !field)
+		return 0;
+	if (!(config.m_skinOffset < btScalar(0.5) * field->getClamp()))
+		return "btEllipsoidClothCollider::Config: m_skinOffset must be below half the skin field's clamp distance in "
+			   "TIGHT_SKIN mode (the field is exact only within the clamp; use ELLIPSOIDS or bake a wider band)";
+	return 0;
+}
+
+const btSkinDistanceField* btEllipsoidClothColliderCore::activeSkinField() const
+{
+	if (m_config.m_surface != TIGHT_SKIN || btSkinFieldConfigError(m_config, m_compound))
+		return 0;
+	return m_compound->getSkinField();
+}
+
+bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const btVector3& q, const Substep& substep,
+												 btScalar& zeta)
+{
+	zeta = SIMD_INFINITY;
+	const btSkinFieldGeometry& geometry = m_skinGeometry;
+	const btVector3 qb = geometry.toBody() * q, xb = geometry.toBody() * node.m_x;
+	btSkinPathHit hit;
+	geometry.march(qb, xb, hit);
+	if (hit.m_outcome == btSkinPathHit::CLEAR)
+		return false; // the march verified field >= offset at x (its cheap test and its last ball both contain x)
+	m_lastStats.m_skinMarchLimits += hit.m_limited ? 1 : 0;
+	const btVector3& center = m_current[substep.m_candidates[0]].m_center; // for PAPER_EQ10
+	btScalar value = hit.m_value; // the field at the node's final position, tracked through the response
+	if (hit.m_outcome == btSkinPathHit::START_INSIDE)
+		value = pushOutOfSkin(node, q, xb, center, substep);
+	else
+	{
+		++m_lastStats.m_nodesCorrected;
+		node.m_x = geometry.toWorld() * hit.m_point;
+		btVector3 n = hit.m_normal.length2() > btScalar(0) ? hit.m_normal : geometry.normal(hit.m_point);
+		if (n.length2() == btScalar(0))
+			n = (qb - xb).normalized(); // a flat spot of the field at the offset level: back along the path
+		const btVector3 normal = geometry.toWorld().getBasis() * n;
+		if (respondOnSkin(node, normal, node.m_x - normal * geometry.offset(), q, center, substep, btScalar(1) - hit.m_t,
+						  value))
+		{
+			node.m_x = q; // held by static friction: stays at its start, outside (the march found field(q) >= offset)
+			value = hit.m_startValue;
+		}
+	}
+	m_lastStats.m_minSkinField = btMin(m_lastStats.m_minSkinField, value);
+	return false;
+}
+
+btScalar btEllipsoidClothColliderCore::pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb,
+													 const btVector3& center, const Substep& substep)
+{
+	const btSkinFieldGeometry& geometry = m_skinGeometry;
+	// The body moved into the node (or it started within the skin). If the solve already brought it out, keep it.
+	btScalar value = geometry.field()->distance(xb);
+	if (value >= geometry.offset())
+		return value;
+	++m_lastStats.m_nodesPushedOut;
+	btVector3 out;
+	if (geometry.pushOut(xb, out, value))
+	{
+		node.m_x = geometry.toWorld() * out;
+		const btVector3 normal = geometry.toWorld().getBasis() * geometry.normal(out);
+		respondOnSkin(node, normal, node.m_x - normal * geometry.offset(), q, center, substep, btScalar(0), value);
+		return value;
+	}
+	// The gradient vanishes (deeper than the clamp, the field's extremum) or Newton did not converge: the union
+	// push-out, whose exit is outside every ellipsoid and so outside the skin they enclose.
+	++m_lastStats.m_skinFallbacks;
+	bool moved;
+	pushNodeOut(node, node.m_x, q, substep, moved);
+	if (!moved)
+	{
+		btScalar ignored = SIMD_INFINITY;
+		leavePocket(node, substep, ignored); // outside every ellipsoid already: a pocket the union encloses
+	}
+	return geometry.field()->distance(geometry.toBody() * node.m_x);
+}
+
+bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const btVector3& normal,
+												 const btVector3& surface, const btVector3& start,
+												 const btVector3& center, const Substep& substep, btScalar remaining,
+												 btScalar& value)
+{
+	btNodeContacts contacts;
+	contacts.add(normal);
+	const btVector3 bodyVelocity = bodyVelocityAt(surface, substep.m_dt);
+	const btVector3 before = node.m_v;
+	const btVector3 relative = node.m_v - bodyVelocity;
+	btVector3 vr = btRelativeVelocityAfterContact(m_config.m_velocityRule, substep.m_friction, relative, contacts,
+												  surface, start, center);
+	const bool stopped = relative.length2() > btScalar(0) && vr.length2() == btScalar(0);
+	if (remaining > btScalar(0) && !stopped)
+	{
+		// The rest of the substep along the surface, with the new velocity.
+		const btSkinFieldGeometry& geometry = m_skinGeometry;
+		const btVector3 displacement = geometry.toBody().getBasis() * (vr * (remaining * substep.m_dt));
+		node.m_x = geometry.toWorld() * geometry.slide(geometry.toBody() * node.m_x, displacement, value);
+	}
+	if (substep.m_dt > btScalar(0))
+		vr = btCapBySurfaceMotion(vr, normal, (node.m_x - start) / substep.m_dt);
+	node.m_v = bodyVelocity + vr;
+	if (m_dynamicBody)
+	{
+		m_dynamicBody->applyImpulse((before - node.m_v) / node.m_im, surface - m_dynamicBody->getCenterOfMassPosition());
+		m_dynamicBody->activate();
+	}
+	return stopped;
+}
