@@ -26,14 +26,14 @@ struct CellLocation
 	double frac[3]; ///< in [0, 1]
 };
 
-/// The brick and cell that the field at p reads (skin_field.h: floor per axis, clamped to the grid). False when p
-/// is outside the grid (or not finite).
+/// The brick and cell that the field at p reads (skin_field.h: floor per axis). False when p is outside the grid
+/// [o, o + B h (nx, ny, nz)) (or not finite).
 bool locateCell(const Eigen::Vector3d& origin, double h, const int dims[3], const Eigen::Vector3d& p, CellLocation& out)
 {
 	for (int k = 0; k < 3; ++k)
 	{
 		const double u = (p[k] - origin[k]) / h; // voxel units
-		if (!(u >= 0.0 && u <= double(dims[k]) * B))
+		if (!(u >= 0.0 && u < double(dims[k]) * B)) // the grid's upper faces are outside, as in btSkinDistanceField
 			return false;
 		out.brick[k] = std::min(int(u / B), dims[k] - 1); // u >= 0: truncation is floor
 		const double local = u - double(out.brick[k]) * B;
@@ -810,6 +810,21 @@ struct GrownUnion
 	}
 };
 
+/// A lattice point of the brick is inside the skin: the brick must be stored even outside the grown union (a fit's
+/// union can leave pockets under the skin uncovered; far outside there would be wrong, and would put a far-outside
+/// brick next to a far-inside one, which btSkinDistanceField refuses).
+bool holdsInside(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign, int brick)
+{
+	const long long X0 = (long long)(brick % L.dims[0]) * B, Y0 = (long long)((brick / L.dims[0]) % L.dims[1]) * B,
+					Z0 = (long long)(brick / (L.dims[0] * L.dims[1])) * B;
+	for (int c = 0; c <= B; ++c)
+		for (int b = 0; b <= B; ++b)
+			for (int a = 0; a <= B; ++a)
+				if (latticeQuanta(L, owned, brickSign, X0 + a, Y0 + b, Z0 + c) <= 0)
+					return true;
+	return false;
+}
+
 /// Step 5 and the layout: brick index, samples of the stored bricks, and the largest error at their band points.
 void gatherBricks(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign,
 				  const std::vector<char>& stored, SkinField& field)
@@ -949,7 +964,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 		const int i = brick % L.dims[0], j = (brick / L.dims[0]) % L.dims[1], k = brick / (L.dims[0] * L.dims[1]);
 		const Eigen::Vector3d centre = L.point((long long)i * B, (long long)j * B, (long long)k * B) +
 									   Eigen::Vector3d::Constant(0.5 * B * L.h);
-		if (grown.meets(centre, halfDiagonal))
+		if (!stored[std::size_t(brick)] && (grown.meets(centre, halfDiagonal) || holdsInside(L, owned, brickSign, brick)))
 			stored[std::size_t(brick)] = 1;
 	}
 	gatherBricks(L, owned, brickSign, stored, field);

@@ -18,14 +18,15 @@
 ///    [-clamp, +clamp]; quantum = clamp / 32767. A lattice point shared by neighbouring bricks has the same value in
 ///    every copy, so the field is continuous across brick faces.
 ///  - The field at a point = trilinear interpolation of the 8 lattice samples of its cell in its brick (the brick is
-///    floor((p - o) / (B h)) per axis, clamped to the grid, so a point on a shared face reads the brick above it;
-///    both copies agree there).
+///    floor((p - o) / (B h)) per axis, so a point on a shared face reads the brick above it; both copies agree
+///    there). The grid is [o, o + B h (nx, ny, nz)): its upper faces are outside, as in btSkinDistanceField.
 ///
 /// The bake (bakeSkinField):
 ///  1. Bricks: a brick is "near" when its box is within `clamp` of the bounding box of some triangle (so every brick
 ///     holding a point with |d| < clamp is near). Near bricks that meet the ellipsoid union grown by skinOffset + 2h
-///     (tested conservatively from the brick's centre and half-diagonal), and every brick holding a skin sample of
-///     step 4, are stored.
+///     (tested conservatively from the brick's centre and half-diagonal), that have a lattice point inside the skin
+///     (a union can leave pockets under the skin uncovered), or that hold a skin sample of step 4, are stored; the
+///     other near bricks lie outside the body and the grown union and are kFarOutside.
 ///  2. Exact distances: every lattice point within clamp of the skin gets the distance to its nearest triangle. The
 ///     point's nearest skin point lies in the interior of a face, of an edge, or at a vertex, and the point then lies
 ///     in that feature's region (Mauch's closest point transform scan-converts the same regions): for a face, the
