@@ -2,6 +2,7 @@
 #include "bodyfit/fitting/skin_field.h"
 
 #include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/inside_test.h"
 
 #include <algorithm>
 #include <cmath>
@@ -587,7 +588,74 @@ void exactDistances(const TriMesh& mesh, const MeshTopology& topo, const std::ve
 }
 
 // ---------------------------------------------------------------------------------------------------------------
-// Step 3: the sign of the points at |d| >= clamp and of the bricks that are not near.
+// Step 3: signs where the pseudo-normal fails, then the sign of the points at |d| >= clamp and of the bricks that
+// are not near.
+
+/// Global lattice coordinates of owned point p.
+void latticeOf(const Lattice& L, const OwnedPoints& owned, long long p, long long P[3])
+{
+	const int brick = owned.slotBrick[std::size_t(p / kOwned)], local = int(p % kOwned);
+	P[0] = (long long)(brick % L.dims[0]) * B + local % B;
+	P[1] = (long long)((brick / L.dims[0]) % L.dims[1]) * B + (local / B) % B;
+	P[2] = (long long)(brick / (L.dims[0] * L.dims[1])) * B + local / (B * B);
+}
+
+/// Step 3a. A distance field is 1-Lipschitz: two neighbouring exact points whose signed distances differ by more than
+/// the voxel have a wrong sign between them. The pseudo-normal sign fails where the mesh passes through itself (toes
+/// or fingers pressed into each other): there the ray-parity test of fitting/inside_test.h (inside the union of the
+/// closed components, a vote over three axes) decides both points' signs, and a point whose sign it changes has its
+/// exact neighbours decided the same way in turn. Returns the number of signs changed.
+int repairSigns(const TriMesh& mesh, const Lattice& L, OwnedPoints& owned)
+{
+	const double limit = L.h * (1.0 + 1e-5) + 1e-9; // the distances went through float
+	auto signedDistance = [&](long long p) { return owned.sign[std::size_t(p)] * std::sqrt(double(owned.best2[std::size_t(p)])); };
+	auto exactNeighbour = [&](const long long P[3], int axis, int dir) {
+		long long Q[3] = {P[0], P[1], P[2]};
+		Q[axis] += dir;
+		const long long q = owned.index(L, Q[0], Q[1], Q[2]);
+		return q >= 0 && owned.touched(q) ? q : -1;
+	};
+	std::vector<long long> queue;
+	std::vector<char> queued(owned.best2.size(), 0);
+	auto push = [&](long long q) {
+		if (!queued[std::size_t(q)])
+			queued[std::size_t(q)] = 1, queue.push_back(q);
+	};
+	long long P[3];
+	for (long long p = 0; p < (long long)owned.best2.size(); ++p)
+	{
+		if (!owned.touched(p))
+			continue;
+		latticeOf(L, owned, p, P);
+		for (int axis = 0; axis < 3; ++axis)
+		{
+			const long long q = exactNeighbour(P, axis, 1);
+			if (q >= 0 && std::abs(signedDistance(p) - signedDistance(q)) > limit)
+				push(p), push(q);
+		}
+	}
+	if (queue.empty())
+		return 0;
+	const MeshInsideTest inside(mesh);
+	int changed = 0;
+	for (std::size_t head = 0; head < queue.size(); ++head)
+	{
+		const long long p = queue[head];
+		latticeOf(L, owned, p, P);
+		const std::int8_t sign = inside.isInside(L.point(P[0], P[1], P[2])) ? -1 : 1;
+		if (sign == owned.sign[std::size_t(p)])
+			continue;
+		owned.sign[std::size_t(p)] = sign;
+		++changed;
+		for (int axis = 0; axis < 3; ++axis)
+			for (int dir = -1; dir <= 1; dir += 2)
+				if (const long long q = exactNeighbour(P, axis, dir); q >= 0)
+					push(q);
+	}
+	return changed;
+}
+
+
 
 /// Sign of a far point at X of a row from the exact points of the row (sorted X, their signs): the one that ends its
 /// run on the nearer side, or + where the run reaches the grid's border. `next` is the first exact point after X.
@@ -942,10 +1010,12 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 
 	OwnedPoints owned = nearBricks(L, planes, options.clamp);
 	exactDistances(mesh, topo, planes, planeOf, L, options.clamp, owned);
+	const int repaired = repairSigns(mesh, L, owned);
 	std::vector<std::int8_t> brickSign(std::size_t(L.brickCount()), 0);
 	signFarPoints(L, owned, brickSign);
 
 	SkinField field;
+	field.repairedSigns = repaired;
 	field.origin = L.origin;
 	field.voxel = L.h;
 	field.clamp = options.clamp;

@@ -41,8 +41,11 @@
 ///     nearest feature (Baerentzen and Aanaes, "Signed distance computation using the angle weighted
 ///     pseudonormal", 2005): the face normal, the sum of the two face normals of an edge, the angle-weighted sum of
 ///     the face normals at a vertex. It is exact for closed, consistently oriented (CCW = outward) meshes, which the
-///     load-and-repair step produces for the bundled bodies (fitting/inside_test.h's ray parity is the tests'
-///     independent reference). Every other point (|d| >= clamp) only needs its sign: along each lattice row a run of
+///     load-and-repair step produces for the bundled bodies. It fails where the mesh passes through itself (the
+///     bundled bodies' toes): there two neighbouring points differ by more than the voxel, which a distance field
+///     cannot, and the ray-parity test of fitting/inside_test.h (the union of the closed components, a vote over
+///     three axes) decides their signs, spreading to their neighbours while it changes signs (repairedSigns). Every
+///     other point (|d| >= clamp) only needs its sign: along each lattice row a run of
 ///     such points takes the sign of the exact point that ends it on the nearer side, or + where it reaches the grid
 ///     border (a flood fill along rows: a pocket of outside air enclosed by the band, e.g. under an arm, is outside).
 ///     Two neighbouring points at |d| >= clamp > h, or such a point and a neighbour, cannot lie on the two sides of
@@ -112,6 +115,7 @@ struct SkinField
 	double skinOffset = 0.002; ///< SkinFieldOptions::skinOffset of the bake (metres)
 	double maxError = 0.0;     ///< max |field - true distance| measured at bake time (metres; step 5 above)
 	int loweredSamples = 0;    ///< skin samples that read > 0 before the conservative pass (step 4)
+	int repairedSigns = 0;     ///< band points whose pseudo-normal sign the inside test corrected (step 3)
 
 	double quantum() const { return clamp / 32767.0; }
 	int brickCount() const { return nx * ny * nz; }
