@@ -21,7 +21,7 @@ int runSkinBake(const bodyfit_bench::Context& ctx)
 	const int repeats = ctx.repeatsGiven ? ctx.repeats : (ctx.quick ? 3 : 9);
 
 	Table t({"body", "vertices", "triangles", "ellipsoids", "median bake ms (CPU)", "median bake ms (wall)",
-			 "bricks stored", "bricks total", "bytes", "max error mm", "lowered samples"});
+			 "bricks stored", "bricks total", "bytes", "max error mm", "lowered samples", "repaired signs"});
 	std::vector<std::string> files;
 	for (const BodyAsset& b : bundledBodies())
 	{
@@ -45,7 +45,7 @@ int runSkinBake(const bodyfit_bench::Context& ctx)
 		t.addRow({file, fmtInt(mesh.vertexCount()), fmtInt(mesh.faceCount()), fmtInt(int(ellipsoids.size())), fmt(cpuMs, 2),
 				  fmt(ms, 2),
 				  fmtInt(field.storedBricks()), fmtInt(field.brickCount()), fmtInt((long long)field.bytes()),
-				  fmt(field.maxError * 1e3, 3), fmtInt(field.loweredSamples)});
+				  fmt(field.maxError * 1e3, 3), fmtInt(field.loweredSamples), fmtInt(field.repairedSigns)});
 	}
 	emitTable(ctx, "skin_bake",
 			  "Skin field bake, voxel " + fmt(options.voxel * 1e3, 2) + " mm, clamp " + fmt(options.clamp * 1e3, 1) +

@@ -621,19 +621,32 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, OwnedPoints& owned)
 		if (!queued[std::size_t(q)])
 			queued[std::size_t(q)] = 1, queue.push_back(q);
 	};
+	// The unsigned distance is 1-Lipschitz whatever the signs: only a pair of opposite signs can break the bound.
+	auto suspect = [&](long long p, long long q) {
+		return q >= 0 && owned.sign[std::size_t(p)] != owned.sign[std::size_t(q)] &&
+			   std::abs(signedDistance(p) - signedDistance(q)) > limit;
+	};
 	long long P[3];
-	for (long long p = 0; p < (long long)owned.best2.size(); ++p)
-	{
-		if (!owned.touched(p))
-			continue;
-		latticeOf(L, owned, p, P);
-		for (int axis = 0; axis < 3; ++axis)
-		{
-			const long long q = exactNeighbour(P, axis, 1);
-			if (q >= 0 && std::abs(signedDistance(p) - signedDistance(q)) > limit)
-				push(p), push(q);
-		}
-	}
+	for (long long slot = 0; slot < (long long)owned.slotBrick.size(); ++slot)
+		for (int c = 0; c < B; ++c)
+			for (int b = 0; b < B; ++b)
+				for (int a = 0; a < B; ++a)
+				{
+					const long long p = slot * kOwned + a + B * (b + B * c);
+					if (!owned.touched(p))
+						continue;
+					const int local[3] = {a, b, c}, stride[3] = {1, B, B * B};
+					for (int axis = 0; axis < 3; ++axis)
+					{
+						long long q = -1; // the +axis neighbour: in the same brick, or found through the lattice
+						if (local[axis] < B - 1)
+							q = owned.touched(p + stride[axis]) ? p + stride[axis] : -1;
+						else
+							latticeOf(L, owned, p, P), q = exactNeighbour(P, axis, 1);
+						if (suspect(p, q))
+							push(p), push(q);
+					}
+				}
 	if (queue.empty())
 		return 0;
 	const MeshInsideTest inside(mesh);
