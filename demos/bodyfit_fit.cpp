@@ -1,6 +1,7 @@
 // bodyfit-fit: fit ellipsoids to a body mesh and write them as JSON (docs/DESIGN.md sec. 6).
 #include "bodyfit/fitting/ellipsoid_io.h"
 #include "bodyfit/fitting/fit_pipeline.h"
+#include "bodyfit/fitting/skin_field.h"
 #include "bodyfit/fitting/skinned_fit.h"
 #include "common/cli.h"
 
@@ -41,6 +42,13 @@ that let the ellipsoids follow every clip of the rig.
   --no-segmentation      fit the whole mesh as one region (generic path)
   --no-triangle-cover    skip the triangle cover: the union then encloses every vertex but not all of
                          the skin between two ellipsoids (slivers stick out, cloth can rest inside the body)
+  --no-skin-field        do not bake the skin field (by default OUT.skin is written next to OUT.json: a
+                         narrow-band signed distance field of the skin the collider can contact tightly,
+                         fitting/include/bodyfit/fitting/skin_field.h; not baked for a rigged file, whose
+                         skin moves)
+  --skin-voxel M         skin field voxel size in metres (default 0.005; 0.0005 - 0.05)
+  --skin-clamp M         skin field band: distances are kept within M metres of the skin (default 0.012;
+                         at least 2 voxels, at most 0.1)
   -h, --help             this text
 
 E_j is the paper's fitting error: the mean radial distance of an ellipsoid's vertices to its surface.
@@ -65,6 +73,32 @@ std::string ms(double v)
 	char buf[64];
 	std::snprintf(buf, sizeof buf, v < 10.0 ? "%.2f ms" : v < 1e12 ? "%.1f ms" : "%.6g ms", v);
 	return buf;
+}
+
+/// Bakes the skin field of the fitted mesh into fit.skinField (timing "skin_field").
+void bakeSkinField(const bodyfit::TriMesh& mesh, const bodyfit::SkinFieldOptions& options, bodyfit::BodyFit& fit)
+{
+	std::vector<bodyfit::Ellipsoid> ellipsoids;
+	for (const bodyfit::FittedEllipsoid& f : fit.ellipsoids)
+		ellipsoids.push_back(f.ellipsoid);
+	const auto t0 = std::chrono::steady_clock::now();
+	fit.skinField = std::make_shared<const bodyfit::SkinField>(bodyfit::bakeSkinField(mesh, ellipsoids, options));
+	fit.setTiming("skin_field", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+}
+
+void printSkinField(const bodyfit::BodyFit& fit, const std::string& outPath, const std::string& why)
+{
+	if (!fit.skinField)
+	{
+		std::cout << "  skin      no skin field (" << why << ")\n";
+		return;
+	}
+	const bodyfit::SkinField& f = *fit.skinField;
+	char size[64];
+	std::snprintf(size, sizeof size, "%.2f MB", double(bodyfit::skinFieldBytes(f).size()) / (1024.0 * 1024.0));
+	std::cout << "  skin      field in " << bodyfit::skinFieldPathFor(outPath) << ": " << size << ", " << f.storedBricks()
+			  << " of " << f.brickCount() << " bricks stored, voxel " << mm(f.voxel) << ", clamp " << mm(f.clamp)
+			  << ", max error " << mm(f.maxError) << ", baked in " << ms(fit.timingMs("skin_field")) << "\n";
 }
 
 void printSummary(const bodyfit::LoadedMesh& loaded, const bodyfit::BodyFit& fit, const std::string& regions,
@@ -139,7 +173,10 @@ int main(int argc, char** argv)
 									  {"--segments", true, "OUT.ply|OUT.obj"},
 									  {"--skinned-mesh", true, "NAME"},
 									  {"--no-segmentation", false, ""},
-									  {"--no-triangle-cover", false, ""}});
+									  {"--no-triangle-cover", false, ""},
+									  {"--no-skin-field", false, ""},
+									  {"--skin-voxel", true, "M"},
+									  {"--skin-clamp", true, "M"}});
 		if (args.helpRequested())
 		{
 			std::cout << kUsage;
@@ -168,8 +205,24 @@ int main(int argc, char** argv)
 			bodyfit_cli::requireWritableOutput(exportPath, "--export-mesh");
 		if (args.has("--segments"))
 			bodyfit_cli::requireWritableOutput(segmentsPath, "--segments");
-		bodyfit_cli::requireDistinctOutputs({{"-o", outPath}, {"--export-mesh", exportPath}, {"--segments", segmentsPath}},
+		const std::string skinPath = args.has("--no-skin-field") ? "" : bodyfit::skinFieldPathFor(outPath);
+		if (!skinPath.empty())
+			bodyfit_cli::requireWritableOutput(skinPath, "skin field (next to -o)");
+		bodyfit_cli::requireDistinctOutputs({{"-o", outPath},
+											 {"--export-mesh", exportPath},
+											 {"--segments", segmentsPath},
+											 {"skin field (next to -o)", skinPath}},
 											{{"input mesh", meshPath}});
+
+		const bool skinField = !args.has("--no-skin-field");
+		if (!skinField && (args.has("--skin-voxel") || args.has("--skin-clamp")))
+			throw UsageError("--skin-voxel / --skin-clamp set the skin field: drop --no-skin-field");
+		bodyfit::SkinFieldOptions skinOptions;
+		skinOptions.voxel = args.number("--skin-voxel", skinOptions.voxel, 0.0005, 0.05);
+		skinOptions.clamp = args.number("--skin-clamp", skinOptions.clamp, 0.001, 0.1);
+		if (!(skinOptions.clamp >= 2.0 * skinOptions.voxel))
+			throw UsageError("--skin-clamp: " + std::to_string(skinOptions.clamp) + " m is less than 2 voxels (" +
+							 std::to_string(2.0 * skinOptions.voxel) + " m)");
 
 		bodyfit::FitPipelineOptions options;
 		options.load.up = args.choice("--up", {"y", "z"}, "y") == "z" ? bodyfit::UpAxis::Z : bodyfit::UpAxis::Y;
@@ -223,6 +276,9 @@ int main(int argc, char** argv)
 			fit.setTiming("skinning.bind", std::chrono::duration<double, std::milli>(bindTime).count());
 		}
 
+		if (skinField && !rig)
+			bakeSkinField(mesh, skinOptions, fit);
+
 		// Outputs.
 		bodyfit_cli::ensureParentDirectory(outPath);
 		bodyfit::writeEllipsoidJson(outPath, fit);
@@ -242,6 +298,7 @@ int main(int argc, char** argv)
 		if (!segmentsPath.empty())
 			extraOutputs += (extraOutputs.empty() ? "" : ", ") + segmentsPath;
 		printSummary(result.loaded, fit, regionSummary, outPath, extraOutputs);
+		printSkinField(fit, outPath, !skinField ? "--no-skin-field" : "a rigged body's skin moves; the field is static");
 		if (rig)
 			std::cout << "  skinning  rig with " << rig->boneCount() << " bones, " << rig->clips.size()
 					  << " clip(s): bind pose fitted, " << fit.skinning->vertexPoints + fit.skinning->coverPoints

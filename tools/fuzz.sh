@@ -15,7 +15,7 @@ SECONDS_PER_TARGET=${2:-60}
 shift $(( $# >= 2 ? 2 : $# ))
 TARGETS=("$@")
 if [ ${#TARGETS[@]} -eq 0 ]; then
-	TARGETS=(fuzz_ellipsoid_json fuzz_mesh_file fuzz_repair_mesh fuzz_scene)
+	TARGETS=(fuzz_ellipsoid_json fuzz_mesh_file fuzz_repair_mesh fuzz_scene fuzz_skin_field)
 fi
 
 if [ ! -f "$BUILD/CMakeCache.txt" ]; then
@@ -68,6 +68,11 @@ head -c 200 tests/data/garbage.bin >"$S/seed_garbage"
 # 8 vertices, 8 faces, grid mode: two tetrahedra, at the origin and 0.6 away on each axis (two components, one
 # detached: components.h).
 printf '\007\010\001\000\000\000\001\000\000\000\001\000\000\000\001\006\006\006\007\006\006\006\007\006\006\006\007\000\002\001\000\001\003\000\003\002\001\002\003\004\006\005\004\005\007\004\007\006\005\006\007\000' >"$S/seed_two_tetra_grid"
+
+# A skin field side file (skin_field.h) baked from a 5 cm cube at a 1 cm voxel, and its header alone.
+S=$(seed_dir fuzz_skin_field)
+cp tests/data/skin_field_cube.skin "$S/seed_cube.skin"
+head -c 104 tests/data/skin_field_cube.skin >"$S/seed_header.skin"
 
 status=0
 for t in "${TARGETS[@]}"; do

@@ -4,6 +4,7 @@
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/input_files.h"
 #include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/skin_field.h"
 #include "bodyfit/fitting/skinned_fit.h"
 
 #include <nlohmann/json.hpp>
@@ -11,6 +12,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -215,6 +217,53 @@ FittedEllipsoid readEllipsoid(const Reader& r, const Json& e, const std::string&
 	return f;
 }
 
+Json skinFieldSection(const BodyFit& fit)
+{
+	const SkinField& f = *fit.skinField;
+	return {{"file", fit.skinFieldFile},
+			{"version", kSkinFieldFileVersion},
+			{"voxel", f.voxel},
+			{"clamp", f.clamp},
+			{"bricks", f.storedBricks()},
+			{"bytes", (long long)skinFieldBytes(f).size()},
+			{"max_error", f.maxError}};
+}
+
+/// The skin_field section: the side file's name (a plain file name, next to the fit file) into fit.skinFieldFile; the
+/// other members are checked when the side file is read (checkSkinFieldSection).
+void readSkinFieldSection(const Reader& r, const Json& doc, BodyFit& fit)
+{
+	const Json& s = r.object(doc["skin_field"], "skin_field");
+	const std::string file = r.string(r.require(s, "file", "skin_field"), "skin_field.file");
+	if (file.empty() || file.find('/') != std::string::npos || file.find('\\') != std::string::npos ||
+		file == "." || file == "..")
+		r.fail("skin_field.file", "must be a file name in the fit file's directory (got \"" + file + "\")");
+	if (s.contains("version") && r.integer(s["version"], "skin_field.version", 0) != int(kSkinFieldFileVersion))
+		r.fail("skin_field.version", "unsupported version " + s["version"].dump() + " (this build reads version " +
+										 std::to_string(kSkinFieldFileVersion) + ")");
+	for (const char* key : {"voxel", "clamp", "max_error"})
+		if (s.contains(key))
+			r.nonNegative(s[key], std::string("skin_field.") + key);
+	for (const char* key : {"bricks", "bytes"})
+		if (s.contains(key))
+			r.integer(s[key], std::string("skin_field.") + key, 0);
+	fit.skinFieldFile = file;
+}
+
+/// The side file's grid agrees with what the section says about it (when it says it).
+void checkSkinFieldSection(const Json& section, const SkinField& f, const std::string& where)
+{
+	auto mismatch = [&](const char* key, const std::string& file, const std::string& side) {
+		throw FormatError(where + ": the fit file says " + key + " " + file + ", the side file has " + side);
+	};
+	if (section.contains("voxel") && section["voxel"].get<double>() != f.voxel)
+		mismatch("voxel", Reader::format(section["voxel"].get<double>()), Reader::format(f.voxel));
+	if (section.contains("clamp") && section["clamp"].get<double>() != f.clamp)
+		mismatch("clamp", Reader::format(section["clamp"].get<double>()), Reader::format(f.clamp));
+	if (section.contains("bricks") && section["bricks"].get<long long>() != f.storedBricks())
+		mismatch("bricks", section["bricks"].dump(), std::to_string(f.storedBricks()));
+}
+
 RefineStatus refineStatusFromName(const Reader& r, const std::string& s, const std::string& field)
 {
 	for (RefineStatus st : {RefineStatus::Converged, RefineStatus::Frozen, RefineStatus::BudgetReached,
@@ -279,6 +328,8 @@ std::string toEllipsoidJson(const BodyFit& fit)
 	doc["warnings"] = fit.warnings;
 	if (fit.skinning)
 		doc["skinning"] = Json::parse(skinBindingJson(*fit.skinning));
+	if (fit.skinField && !fit.skinFieldFile.empty())
+		doc["skin_field"] = skinFieldSection(fit);
 	return doc.dump(2) + "\n";
 }
 
@@ -288,7 +339,17 @@ void writeEllipsoidJson(const std::string& path, const BodyFit& fit)
 	if (!range.empty())
 		throw FormatError(path + ": not written, the fit is outside a fit file's range: " + range +
 						  " (a mesh in millimetres or centimetres needs a scale)");
-	const std::string text = toEllipsoidJson(fit);
+	std::string text;
+	if (fit.skinField)
+	{
+		const std::string side = skinFieldPathFor(path);
+		writeSkinField(side, *fit.skinField);
+		BodyFit named = fit;
+		named.skinFieldFile = std::filesystem::path(side).filename().string();
+		text = toEllipsoidJson(named);
+	}
+	else
+		text = toEllipsoidJson(fit);
 	std::ofstream out(path, std::ios::binary);
 	if (!out)
 		throw FormatError(path + ": cannot open for writing");
@@ -401,12 +462,36 @@ BodyFit parseEllipsoidJson(const std::string& text, const std::string& name)
 	}
 	if (doc.contains("skinning"))
 		fit.skinning = parseSkinBinding(doc["skinning"].dump(), name, int(fit.ellipsoids.size()));
+	if (doc.contains("skin_field"))
+		readSkinFieldSection(r, doc, fit);
 	return fit;
 }
 
 BodyFit readEllipsoidJson(const std::string& path)
 {
-	return parseEllipsoidJson(readJsonInputFile(path, "fit file"), path);
+	const std::string text = readJsonInputFile(path, "fit file");
+	BodyFit fit = parseEllipsoidJson(text, path);
+	if (fit.skinFieldFile.empty())
+		return fit;
+	const std::string side = (std::filesystem::path(path).parent_path() / fit.skinFieldFile).string();
+	const std::string where = path + ": skin_field";
+	try
+	{
+		fit.skinField = std::make_shared<const SkinField>(readSkinField(side));
+	}
+	catch (const FormatError& e)
+	{
+		throw FormatError(where + ": " + e.what());
+	}
+	checkSkinFieldSection(Json::parse(text)["skin_field"], *fit.skinField, where + ": " + side);
+	return fit;
+}
+
+std::string skinFieldPathFor(const std::string& fitPath)
+{
+	std::filesystem::path side(fitPath);
+	side.replace_extension(".skin");
+	return side.string() == fitPath ? fitPath + ".skin" : side.string();
 }
 
 TriMesh ellipsoidMesh(const std::vector<FittedEllipsoid>& ellipsoids, int subdivisions, Eigen::MatrixX3d* colors)

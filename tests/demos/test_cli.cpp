@@ -2,6 +2,7 @@
 
 #include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/ellipsoid_io.h"
+#include "bodyfit/fitting/skin_field.h"
 #include "bodyfit/fitting/skinned_fit.h"
 #include "support/paths.h"
 #include "support/run_program.h"
@@ -77,6 +78,11 @@ TEST_CASE("cli: bad arguments and bad files exit 2 with a one-line reason", "[fi
 	checkBadInput(body + out + " --absolute --absolute", "--absolute given more than once");
 	checkBadInput(body + out + " --export-mesh x.stl", "must end in .obj or .ply");
 	checkBadInput(body + " extra.obj" + out, "unexpected argument");
+	checkBadInput(body + out + " --skin-voxel 0", "--skin-voxel: 0 is out of range");
+	checkBadInput(body + out + " --skin-voxel 0.2", "--skin-voxel: 0.2 is out of range");
+	checkBadInput(body + out + " --skin-clamp x", "--skin-clamp: expected a number");
+	checkBadInput(body + out + " --skin-voxel 0.01 --skin-clamp 0.015", "less than 2 voxels");
+	checkBadInput(body + out + " --no-skin-field --skin-clamp 0.02", "drop --no-skin-field");
 	checkBadInput(quoted(bodyfit_test::dataPath("does_not_exist.obj")) + out, "does_not_exist.obj");
 	checkBadInput(quoted(bodyfit_test::dataPath("garbage.bin")) + out, "garbage.bin");
 	checkBadInput(quoted(bodyfit_test::dataPath("nan_vertex.obj")) + out, "non-finite");
@@ -106,6 +112,13 @@ TEST_CASE("cli: a fit writes readable JSON and the ellipsoid mesh, creating the 
 	CHECK(fit.source.vertices == 4508);
 	CHECK(fit.timingMs("load") > 0.0);
 	CHECK(fs::file_size(ply) > 0);
+	// The skin field is baked by default, written next to the fit, reported, and read back with it.
+	REQUIRE(fit.skinField);
+	CHECK(fit.skinFieldFile == "fit.skin");
+	CHECK(fs::exists(dir / "fit.skin"));
+	CHECK(fit.timingMs("skin_field") > 0.0);
+	CHECK(r.out.find("skin      field in") != std::string::npos);
+	CHECK(fit.skinField->voxel == 0.005);
 
 	// Same input, same options: the same ellipsoids (the timings differ).
 	const std::string json2 = (dir / "fit2.json").string();
@@ -122,6 +135,22 @@ TEST_CASE("cli: a fit writes readable JSON and the ellipsoid mesh, creating the 
 	const bodyfit::BodyFit abs = bodyfit::readEllipsoidJson(json3);
 	CHECK_FALSE(abs.params.relativeToHeight);
 	CHECK(abs.params.muTorso == 0.03);
+
+	// --no-skin-field: no side file, no section; --skin-voxel / --skin-clamp reach the bake.
+	const std::string json4 = (dir / "fit4.json").string();
+	const Run none = run(quoted(bodyfit_test::assetPath("male_young.4508v.obj")) + " -o " + quoted(json4) + " --no-skin-field");
+	REQUIRE(none.status == 0);
+	CHECK(none.out.find("no skin field (--no-skin-field)") != std::string::npos);
+	CHECK_FALSE(fs::exists(dir / "fit4.skin"));
+	CHECK_FALSE(bodyfit::readEllipsoidJson(json4).skinField);
+	const std::string json5 = (dir / "fit5.json").string();
+	REQUIRE(run(quoted(bodyfit_test::assetPath("male_young.4508v.obj")) + " -o " + quoted(json5) +
+				" --skin-voxel 0.008 --skin-clamp 0.02")
+				.status == 0);
+	const bodyfit::BodyFit coarse = bodyfit::readEllipsoidJson(json5);
+	REQUIRE(coarse.skinField);
+	CHECK(coarse.skinField->voxel == 0.008);
+	CHECK(coarse.skinField->clamp == 0.02);
 }
 
 
@@ -184,6 +213,8 @@ TEST_CASE("cli: a rigged GLB is fitted in its bind pose and the fit records the 
 	CHECK(r.out.find("skinning  rig with") != std::string::npos);
 	const bodyfit::BodyFit fit = bodyfit::readEllipsoidJson(json);
 	REQUIRE(fit.skinning != nullptr);
+	CHECK_FALSE(fit.skinField); // a rigged body moves: the static field is not baked
+	CHECK(r.out.find("no skin field (a rigged") != std::string::npos);
 	CHECK(fit.skinning->vertices == 13380);
 	CHECK(fit.skinning->ellipsoids.size() == fit.ellipsoids.size());
 	CHECK(int(fit.skinning->vertexEllipsoid.size()) == 13380);

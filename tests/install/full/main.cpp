@@ -33,6 +33,7 @@
 #include "bodyfit/fitting/rig.h"
 #include "bodyfit/fitting/segmentation.h"
 #include "bodyfit/fitting/skinned_fit.h"
+#include "bodyfit/fitting/skin_field.h"
 #include "bodyfit/fitting/triangle_cover.h"
 #include "bodyfit/fitting/statistics.h"
 #include "bodyfit/metrics/cloth_metrics.h"

@@ -46,6 +46,7 @@ namespace bodyfit
 {
 
 struct SkinBinding; // skinned_fit.h
+struct SkinField;   // skin_field.h
 
 /// How many pieces the triangle cover cuts each edge of the triangle (a, b, c) into: the longest edge in pieces no
 /// longer than `spacing`, between 1 and 64. The fitter's cover and the skin binding (skinned_fit.h) cut alike
@@ -202,6 +203,11 @@ struct BodyFit
 	int coverExtraPoints = 0;
 	/// Bone bindings of a fit made on a rig's bind pose (skinned_fit.h; the fit file's "skinning" section), or null.
 	std::shared_ptr<const SkinBinding> skinning;
+	/// The tight skin surface baked for this fit (skin_field.h), or null. The fit file's "skin_field" section names
+	/// its side file; readEllipsoidJson loads it, writeEllipsoidJson writes it next to the fit file.
+	std::shared_ptr<const SkinField> skinField;
+	/// The side file's name as the fit file gives it (a file in the fit file's directory), or empty.
+	std::string skinFieldFile;
 
 	/// Vertex-weighted mean of E_j (= mean radial error over all fitted vertices), max E_j, and the
 	/// vertex-weighted mean / max of the true distance. Ellipsoids with vertexCount 0 contribute nothing.

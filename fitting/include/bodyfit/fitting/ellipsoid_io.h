@@ -10,7 +10,10 @@
 /// metres, along the rotation's x, y, z columns), radial_error, max_radial_error, mean_distance, max_distance,
 /// vertices}], timing_ms {stage: ms, ...}, stats {count, mean_radial_error, max_radial_error, mean_distance,
 /// max_distance}, refinement {status, splits_accepted, splits_rejected}, warnings [..], and for a fit made on a rig's
-/// bind pose the optional skinning section of skinned_fit.h (its own version; a file without it is a static fit).
+/// bind pose the optional skinning section of skinned_fit.h (its own version; a file without it is a static fit), and
+/// for a fit with a baked skin field the optional skin_field section {file, version, voxel, clamp, bricks, bytes,
+/// max_error}: the side file (skin_field.h) holds the field; the section names it and summarises it. A file without
+/// the section has no field (older files load as before).
 /// Doubles are written with the shortest representation that parses back to the same double (bit-exact).
 ///
 /// Read: format, version and ellipsoids are required; each ellipsoid needs region, center, rotation and axes. The
@@ -35,19 +38,27 @@ constexpr double kMaxFitCoordinate = 1000.0;
 constexpr double kMinFitAxis = 1e-6;
 constexpr double kMaxFitAxis = 1000.0;
 
-/// JSON text of `fit` (2-space indented).
+/// JSON text of `fit` (2-space indented). The skin_field section is written when fit.skinField is set and
+/// fit.skinFieldFile names its side file.
 std::string toEllipsoidJson(const BodyFit& fit);
 
-/// Writes toEllipsoidJson(fit) to `path` (the directory must exist). \throws FormatError, before opening the file, if
-/// an ellipsoid is outside the range above (naming it), or if the file cannot be written.
+/// Writes toEllipsoidJson(fit) to `path` (the directory must exist) and, when fit.skinField is set, the field to
+/// skinFieldPathFor(path), named in the JSON. \throws FormatError, before opening the file, if an ellipsoid is outside
+/// the range above (naming it), or if a file cannot be written.
 void writeEllipsoidJson(const std::string& path, const BodyFit& fit);
 
 /// Parses and validates an ellipsoid-set document. `name` is used in error messages (usually the file path).
 /// \throws FormatError "<name>: <field>: <problem>", e.g. "fit.json: ellipsoids[3].axes[1]: must be > 0 (got -0.01)".
 BodyFit parseEllipsoidJson(const std::string& text, const std::string& name = "<json>");
 
-/// Reads and validates a file. \throws FormatError (also for a missing or unreadable file), naming the file.
+/// Reads and validates a file, and the skin field's side file when the fit file names one (in the same directory).
+/// \throws FormatError (also for a missing or unreadable file), naming the file; for the side file
+/// "<fit>: skin_field: <side file>: <problem>" (missing, truncated, corrupt, or not matching the section).
 BodyFit readEllipsoidJson(const std::string& path);
+
+/// The side file writeEllipsoidJson writes for a fit file: its path with the extension replaced by ".skin"
+/// (fit.json -> fit.skin; a name already ending in .skin gets a second one).
+std::string skinFieldPathFor(const std::string& fitPath);
 
 /// The ellipsoids as one triangle mesh: a unit icosphere subdivided `subdivisions` times (0 = 20 triangles, each
 /// level x4; 2 = 320 triangles, 162 vertices per ellipsoid), mapped by x = c + R diag(axes) u. Optional per-vertex

@@ -1,0 +1,1077 @@
+// The skin field: layout queries and the bake. The method and its guarantees are in skin_field.h.
+#include "bodyfit/fitting/skin_field.h"
+
+#include "bodyfit/fitting/errors.h"
+#include "bodyfit/fitting/inside_test.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace bodyfit
+{
+
+namespace
+{
+
+constexpr int B = kSkinBrickEdge;
+constexpr int kOwned = B * B * B;    ///< lattice points a brick owns: local (a, b, c) in [0, B)^3
+constexpr int kMaxQuanta = 32767;
+
+/// Where a point falls in the grid: its brick, its cell in the brick, and the trilinear weights.
+struct CellLocation
+{
+	int brick[3];
+	int cell[3];   ///< in [0, B)
+	double frac[3]; ///< in [0, 1]
+};
+
+/// The brick and cell that the field at p reads (skin_field.h: floor per axis). False when p is outside the grid
+/// [o, o + B h (nx, ny, nz)) (or not finite).
+bool locateCell(const Eigen::Vector3d& origin, double h, const int dims[3], const Eigen::Vector3d& p, CellLocation& out)
+{
+	for (int k = 0; k < 3; ++k)
+	{
+		const double u = (p[k] - origin[k]) / h; // voxel units
+		if (!(u >= 0.0 && u < double(dims[k]) * B)) // the grid's upper faces are outside, as in btSkinDistanceField
+			return false;
+		out.brick[k] = std::min(int(u / B), dims[k] - 1); // u >= 0: truncation is floor
+		const double local = u - double(out.brick[k]) * B;
+		out.cell[k] = std::min(int(local), B - 1);
+		out.frac[k] = std::clamp(local - out.cell[k], 0.0, 1.0);
+	}
+	return true;
+}
+
+/// Trilinear interpolation of the 8 corners of a cell; value(dx, dy, dz) returns the corner's quanta.
+template <class CornerValue>
+double trilinear(const CellLocation& c, CornerValue value)
+{
+	double sum = 0.0;
+	for (int dz = 0; dz < 2; ++dz)
+		for (int dy = 0; dy < 2; ++dy)
+			for (int dx = 0; dx < 2; ++dx)
+			{
+				const double w = (dx ? c.frac[0] : 1.0 - c.frac[0]) * (dy ? c.frac[1] : 1.0 - c.frac[1]) *
+								 (dz ? c.frac[2] : 1.0 - c.frac[2]);
+				if (w != 0.0)
+					sum += w * double(value(dx, dy, dz));
+			}
+	return sum;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// The bake's grid and its per-point work arrays.
+
+/// The grid of the bake: the mesh's box grown by clamp + (B+1) h on every side, so that the outermost brick layer
+/// holds no point within clamp of a triangle's box (the fill's seeds) and no lattice point of the band sits on the
+/// grid's upper faces (which no brick owns).
+struct Lattice
+{
+	Eigen::Vector3d origin;
+	double h = 0.0;
+	int dims[3] = {0, 0, 0};
+
+	long long brickCount() const { return (long long)dims[0] * dims[1] * dims[2]; }
+	int brickId(int i, int j, int k) const { return i + dims[0] * (j + dims[1] * k); }
+	Eigen::Vector3d point(long long X, long long Y, long long Z) const
+	{
+		return origin + h * Eigen::Vector3d(double(X), double(Y), double(Z));
+	}
+	/// Lattice points per axis that bricks own (B per brick; the upper grid face is owned by none).
+	int ownedExtent(int k) const { return dims[k] * B; }
+};
+
+Lattice makeLattice(const TriMesh& mesh, const SkinFieldOptions& o)
+{
+	const Eigen::Vector3d lo = mesh.V.colwise().minCoeff().transpose();
+	const Eigen::Vector3d hi = mesh.V.colwise().maxCoeff().transpose();
+	const double pad = o.clamp + (B + 1) * o.voxel;
+	Lattice L;
+	L.origin = lo - Eigen::Vector3d::Constant(pad);
+	L.h = o.voxel;
+	long long count = 1;
+	for (int k = 0; k < 3; ++k)
+	{
+		const double n = std::ceil((hi[k] - lo[k] + 2.0 * pad) / (B * o.voxel));
+		if (!(n <= double(kMaxSkinFieldBricks)))
+			throw InvalidInputError("bakeSkinField: the mesh is too large for the grid (" + std::to_string(hi[k] - lo[k]) +
+									" m along an axis at a voxel of " + std::to_string(o.voxel) + " m; is it in metres?)");
+		L.dims[k] = std::max(1, int(n));
+		count *= L.dims[k]; // each factor and the running product <= the limit: no overflow
+		if (count > kMaxSkinFieldBricks)
+			throw InvalidInputError("bakeSkinField: the grid would have more than " + std::to_string(kMaxSkinFieldBricks) +
+									" bricks (is the mesh in metres?)");
+	}
+	return L;
+}
+
+/// Per owned lattice point of the near bricks: the nearest squared distance found (clamp^2 = none within clamp), its
+/// sign (0 = not known yet), and later the stored value in quanta.
+struct OwnedPoints
+{
+	std::vector<int> brickSlot; ///< per brick: slot of a near brick, -1 for the others
+	std::vector<int> slotBrick; ///< per slot: its brick
+	std::vector<float> best2;
+	std::vector<std::int8_t> sign;
+	std::vector<std::int16_t> quanta;
+	float clamp2 = 0.0f;
+
+	bool touched(long long p) const { return best2[std::size_t(p)] < clamp2; }
+	/// Index of the owned point at global lattice (X, Y, Z), or -1 when its brick is not near or off the grid.
+	long long index(const Lattice& L, long long X, long long Y, long long Z) const
+	{
+		if (X < 0 || Y < 0 || Z < 0 || X >= L.ownedExtent(0) || Y >= L.ownedExtent(1) || Z >= L.ownedExtent(2))
+			return -1;
+		const int slot = brickSlot[std::size_t(L.brickId(int(X / B), int(Y / B), int(Z / B)))];
+		if (slot < 0)
+			return -1;
+		return (long long)slot * kOwned + (X % B) + B * ((Y % B) + B * (Z % B));
+	}
+};
+
+// ---------------------------------------------------------------------------------------------------------------
+// Triangles in their plane frames, with the pseudo-normals of their features.
+
+enum Feature
+{
+	kFace = 0,
+	kEdge0 = 1, // v0 v1
+	kEdge1 = 2, // v1 v2
+	kEdge2 = 3, // v2 v0
+	kVertex0 = 4,
+	kVertex1 = 5,
+	kVertex2 = 6
+};
+
+/// A triangle in its plane frame: origin v0, axes u (along v0 v1), v, n (the unit normal); its corners are (0, 0),
+/// (x1, 0), (x2, y2) with x1 > 0, y2 > 0. featureNormal[f] is the pseudo-normal of feature f in (u, v, n) coordinates.
+struct PlaneTriangle
+{
+	Eigen::Vector3d v0, u, v, n;
+	double x1 = 0, x2 = 0, y2 = 0;
+	Eigen::Vector3d featureNormal[7];
+	Eigen::Vector3d boxMin, boxMax;
+};
+
+/// The mesh around each vertex (faces in CSR form), unit face normals (zero for a degenerate face) and the
+/// pseudo-normals of the features: angle-weighted at vertices, per face edge k (corners k, k+1) the sum of the normals
+/// of every face holding that edge (two on a closed manifold; one on a boundary edge, where the sign is then only as
+/// good as that face's).
+struct MeshTopology
+{
+	std::vector<int> start, faces; ///< faces of vertex v: faces[start[v] .. start[v+1])
+	std::vector<Eigen::Vector3d> faceN, vertexN, edgeN;
+
+	explicit MeshTopology(const TriMesh& mesh)
+	{
+		const int nv = mesh.vertexCount(), nf = mesh.faceCount();
+		start.assign(std::size_t(nv) + 1, 0);
+		faces.resize(std::size_t(nf) * 3);
+		for (int f = 0; f < nf; ++f)
+			for (int k = 0; k < 3; ++k)
+				++start[std::size_t(mesh.F(f, k)) + 1];
+		for (int v = 0; v < nv; ++v)
+			start[std::size_t(v) + 1] += start[std::size_t(v)];
+		std::vector<int> fill(start.begin(), start.end() - 1);
+		for (int f = 0; f < nf; ++f)
+			for (int k = 0; k < 3; ++k)
+				faces[std::size_t(fill[std::size_t(mesh.F(f, k))]++)] = f;
+		normals(mesh);
+		edgeN.assign(std::size_t(nf) * 3, Eigen::Vector3d::Zero());
+		std::vector<int> onEdge;
+		for (int f = 0; f < nf; ++f)
+			for (int k = 0; k < 3; ++k)
+			{
+				edgeFaces(mesh, mesh.F(f, k), mesh.F(f, (k + 1) % 3), onEdge);
+				for (int g : onEdge)
+					edgeN[std::size_t(f) * 3 + std::size_t(k)] += faceN[std::size_t(g)];
+			}
+	}
+
+	/// The faces holding the edge (a, b), into `out`.
+	void edgeFaces(const TriMesh& mesh, int a, int b, std::vector<int>& out) const
+	{
+		out.clear();
+		for (int s = start[std::size_t(a)]; s < start[std::size_t(a) + 1]; ++s)
+		{
+			const int g = faces[std::size_t(s)];
+			if (mesh.F(g, 0) == b || mesh.F(g, 1) == b || mesh.F(g, 2) == b)
+				out.push_back(g);
+		}
+	}
+
+private:
+	void normals(const TriMesh& mesh)
+	{
+		faceN.assign(std::size_t(mesh.faceCount()), Eigen::Vector3d::Zero());
+		vertexN.assign(std::size_t(mesh.vertexCount()), Eigen::Vector3d::Zero());
+		for (int f = 0; f < mesh.faceCount(); ++f)
+		{
+			const Eigen::Vector3d p[3] = {mesh.V.row(mesh.F(f, 0)).transpose(), mesh.V.row(mesh.F(f, 1)).transpose(),
+										  mesh.V.row(mesh.F(f, 2)).transpose()};
+			const Eigen::Vector3d c = (p[1] - p[0]).cross(p[2] - p[0]);
+			if (!(c.norm() > 0.0))
+				continue;
+			faceN[std::size_t(f)] = c.normalized();
+			for (int k = 0; k < 3; ++k)
+			{
+				const Eigen::Vector3d a = p[(k + 1) % 3] - p[k], b = p[(k + 2) % 3] - p[k];
+				const double angle = std::atan2(a.cross(b).norm(), a.dot(b));
+				vertexN[std::size_t(mesh.F(f, k))] += angle * faceN[std::size_t(f)];
+			}
+		}
+	}
+};
+
+/// The non-degenerate faces in their plane frames; planeOf[f] is face f's entry, -1 for a degenerate face.
+std::vector<PlaneTriangle> planeTriangles(const TriMesh& mesh, const MeshTopology& topo, std::vector<int>& planeOf)
+{
+	std::vector<PlaneTriangle> out;
+	out.reserve(std::size_t(mesh.faceCount()));
+	planeOf.assign(std::size_t(mesh.faceCount()), -1);
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		const Eigen::Vector3d& n = topo.faceN[std::size_t(f)];
+		if (n.isZero())
+			continue; // degenerate: its edges and corners belong to its neighbours too
+		PlaneTriangle T;
+		T.v0 = mesh.V.row(mesh.F(f, 0)).transpose();
+		const Eigen::Vector3d e0 = mesh.V.row(mesh.F(f, 1)).transpose() - T.v0;
+		const Eigen::Vector3d e1 = mesh.V.row(mesh.F(f, 2)).transpose() - T.v0;
+		T.n = n;
+		T.u = e0.normalized();
+		T.v = T.n.cross(T.u);
+		T.x1 = e0.norm();
+		T.x2 = e1.dot(T.u);
+		T.y2 = e1.dot(T.v);
+		auto local = [&](const Eigen::Vector3d& w) { return Eigen::Vector3d(w.dot(T.u), w.dot(T.v), w.dot(T.n)); };
+		T.featureNormal[kFace] = Eigen::Vector3d(0, 0, 1);
+		for (int k = 0; k < 3; ++k)
+		{
+			T.featureNormal[kEdge0 + k] = local(topo.edgeN[std::size_t(f) * 3 + std::size_t(k)]);
+			T.featureNormal[kVertex0 + k] = local(topo.vertexN[std::size_t(mesh.F(f, k))]);
+		}
+		T.boxMin = T.v0.cwiseMin(T.v0 + e0).cwiseMin(T.v0 + e1);
+		T.boxMax = T.v0.cwiseMax(T.v0 + e0).cwiseMax(T.v0 + e1);
+		planeOf[std::size_t(f)] = int(out.size());
+		out.push_back(T);
+	}
+	return out;
+}
+
+/// Closest point of a plane triangle to (s, t) in its plane: squared distance, feature, the point.
+struct Closest2D
+{
+	double d2;
+	int feature;
+	double cs, ct;
+};
+
+inline void closerOnSegment(double s, double t, double ax, double ay, double bx, double by, int edge, int va, int vb,
+							Closest2D& best)
+{
+	const double dx = bx - ax, dy = by - ay;
+	const double len2 = dx * dx + dy * dy;
+	double tau = len2 > 0.0 ? ((s - ax) * dx + (t - ay) * dy) / len2 : 0.0;
+	int feature = edge;
+	if (tau <= 0.0)
+		tau = 0.0, feature = va;
+	else if (tau >= 1.0)
+		tau = 1.0, feature = vb;
+	const double cs = ax + tau * dx, ct = ay + tau * dy;
+	const double d2 = (s - cs) * (s - cs) + (t - ct) * (t - ct);
+	if (d2 < best.d2)
+		best = {d2, feature, cs, ct};
+}
+
+/// Inside: distance 0 (the face). Outside: the nearest point lies on an edge that faces (s, t) (negative edge
+/// function), so only those are measured.
+inline Closest2D closest2D(const PlaneTriangle& T, double s, double t)
+{
+	const double f0 = t;
+	const double f1 = (T.x2 - T.x1) * t - T.y2 * (s - T.x1);
+	const double f2 = T.y2 * (s - T.x2) - T.x2 * (t - T.y2);
+	if (f0 >= 0.0 && f1 >= 0.0 && f2 >= 0.0)
+		return {0.0, kFace, s, t};
+	Closest2D best{std::numeric_limits<double>::infinity(), kFace, s, t};
+	if (f0 < 0.0)
+		closerOnSegment(s, t, 0.0, 0.0, T.x1, 0.0, kEdge0, kVertex0, kVertex1, best);
+	if (f1 < 0.0)
+		closerOnSegment(s, t, T.x1, 0.0, T.x2, T.y2, kEdge1, kVertex1, kVertex2, best);
+	if (f2 < 0.0)
+		closerOnSegment(s, t, T.x2, T.y2, 0.0, 0.0, kEdge2, kVertex2, kVertex0, best);
+	return best;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Steps 1-2 of skin_field.h: near bricks, exact distances.
+
+/// Lattice index range [lo, hi] of the points of a box grown by `grow` (clipped to the owned lattice).
+void latticeRange(const Lattice& L, const Eigen::Vector3d& boxMin, const Eigen::Vector3d& boxMax, double grow,
+				  long long lo[3], long long hi[3])
+{
+	for (int k = 0; k < 3; ++k)
+	{
+		lo[k] = std::max(0LL, (long long)std::ceil((boxMin[k] - grow - L.origin[k]) / L.h));
+		hi[k] = std::min((long long)L.ownedExtent(k) - 1, (long long)std::floor((boxMax[k] + grow - L.origin[k]) / L.h));
+	}
+}
+
+/// Marks the bricks within `clamp` of a triangle's box as near and gives each a slot of owned points.
+OwnedPoints nearBricks(const Lattice& L, const std::vector<PlaneTriangle>& triangles, double clamp)
+{
+	OwnedPoints owned;
+	owned.brickSlot.assign(std::size_t(L.brickCount()), -1);
+	for (const PlaneTriangle& T : triangles)
+	{
+		long long lo[3], hi[3];
+		latticeRange(L, T.boxMin, T.boxMax, clamp, lo, hi);
+		for (long long k = lo[2] / B; k <= hi[2] / B; ++k)
+			for (long long j = lo[1] / B; j <= hi[1] / B; ++j)
+				for (long long i = lo[0] / B; i <= hi[0] / B; ++i)
+					owned.brickSlot[std::size_t(L.brickId(int(i), int(j), int(k)))] = 0;
+	}
+	for (std::size_t b = 0; b < owned.brickSlot.size(); ++b)
+		if (owned.brickSlot[b] == 0)
+		{
+			owned.brickSlot[b] = int(owned.slotBrick.size());
+			owned.slotBrick.push_back(int(b));
+		}
+	owned.clamp2 = float(clamp * clamp);
+	owned.best2.assign(owned.slotBrick.size() * kOwned, owned.clamp2);
+	owned.sign.assign(owned.slotBrick.size() * kOwned, 0);
+	return owned;
+}
+
+/// Lowers the nearest distance found at owned point p to its distance to T when that is smaller, recording the sign
+/// from the pseudo-normal of T's nearest feature. (s, t, w): the point in T's plane frame.
+inline void measure(const PlaneTriangle& T, double s, double t, double w, long long p, OwnedPoints& owned)
+{
+	if (p < 0)
+		return; // cannot happen: the point is within clamp of T's box, so its brick is near
+	float& best = owned.best2[std::size_t(p)];
+	if (w * w >= double(best))
+		return;
+	const Closest2D c = closest2D(T, s, t);
+	const double d2 = c.d2 + w * w;
+	if (d2 >= double(best))
+		return;
+	best = float(d2);
+	const Eigen::Vector3d& N = T.featureNormal[c.feature];
+	owned.sign[std::size_t(p)] = (s - c.cs) * N.x() + (t - c.ct) * N.y() + w * N.z() < 0.0 ? -1 : 1;
+}
+
+/// A convex region, half-spaces n . p <= b inside a box, holding every point within clamp whose nearest point on the
+/// skin is one feature: the interior of a face, of an edge, or a vertex (the feature's characteristic region, over-
+/// estimated by necessary conditions; Mauch's closest point transform scan-converts the same regions).
+struct FeatureRegion
+{
+	Eigen::Vector3d lo, hi;
+	int axis = 0;                   ///< the rows of the scan run along this axis
+	std::vector<Eigen::Vector3d> n; ///< unit normals
+	std::vector<double> b;
+
+	/// Box, and rows along the axis nearest `normal`.
+	void reset(const Eigen::Vector3d& boxLo, const Eigen::Vector3d& boxHi, const Eigen::Vector3d& normal)
+	{
+		lo = boxLo, hi = boxHi;
+		normal.cwiseAbs().maxCoeff(&axis);
+		n.clear(), b.clear();
+	}
+	/// The half-space normal . (p - through) <= offset.
+	void add(const Eigen::Vector3d& normal, const Eigen::Vector3d& through, double offset = 0.0)
+	{
+		n.push_back(normal);
+		b.push_back(normal.dot(through) + offset);
+	}
+};
+
+/// Measures T at every lattice point of R: per lattice row along R.axis, the interval its half-spaces leave
+/// (widened by a nanometre, so a point on a boundary is kept). Rows run along the axis nearest the feature's normal,
+/// which crosses the thin regions of a smooth skin in few rows. A half-space reads c + dr r + du u + dv v <= 0 at the
+/// lattice point with coordinate r along the row and u, v across it.
+void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, OwnedPoints& owned)
+{
+	constexpr double kSlack = 1e-9; // metres
+	constexpr int kMaxPlanes = 32;  // more (a vertex of valence > 32) are dropped: the region only grows
+	const int ra = R.axis, ua = (R.axis + 1) % 3, va = (R.axis + 2) % 3;
+	const int planes = std::min(int(R.n.size()), kMaxPlanes);
+	double c[kMaxPlanes], du[kMaxPlanes], dv[kMaxPlanes], inv[kMaxPlanes], atV[kMaxPlanes];
+	int kind[kMaxPlanes]; // +1: bounds r above, -1: below, 0: does not depend on r
+	for (int k = 0; k < planes; ++k)
+	{
+		const Eigen::Vector3d& n = R.n[std::size_t(k)];
+		const double dr = L.h * n[ra];
+		c[k] = n.dot(L.origin) - R.b[std::size_t(k)] - kSlack;
+		du[k] = L.h * n[ua];
+		dv[k] = L.h * n[va];
+		kind[k] = dr > 1e-15 ? 1 : dr < -1e-15 ? -1 : 0;
+		inv[k] = kind[k] != 0 ? -1.0 / dr : 0.0;
+	}
+	long long lo[3], hi[3], P[3];
+	latticeRange(L, R.lo, R.hi, 0.0, lo, hi);
+	const double step[3] = {L.h * T.u[ra], L.h * T.v[ra], L.h * T.n[ra]};
+	for (long long V = lo[va]; V <= hi[va]; ++V)
+	{
+		for (int k = 0; k < planes; ++k)
+			atV[k] = c[k] + dv[k] * double(V);
+		for (long long U = lo[ua]; U <= hi[ua]; ++U)
+		{
+			double ra0 = double(lo[ra]), ra1 = double(hi[ra]);
+			for (int k = 0; k < planes && ra0 <= ra1; ++k)
+			{
+				const double c0 = atV[k] + du[k] * double(U); // c0 + dr r <= 0
+				if (kind[k] > 0)
+					ra1 = std::min(ra1, c0 * inv[k]);
+				else if (kind[k] < 0)
+					ra0 = std::max(ra0, c0 * inv[k]);
+				else if (c0 > 0.0)
+					ra1 = ra0 - 1.0;
+			}
+			if (ra0 > ra1)
+				continue;
+			// The row's points in T's plane frame: from its first point, one lattice step along ra at a time.
+			P[ua] = U, P[va] = V, P[ra] = (long long)std::ceil(ra0);
+			const Eigen::Vector3d d = L.point(P[0], P[1], P[2]) - T.v0;
+			double s = d.dot(T.u), t = d.dot(T.v), w = d.dot(T.n);
+			for (; P[ra] <= (long long)std::floor(ra1); ++P[ra], s += step[0], t += step[1], w += step[2])
+				measure(T, s, t, w, owned.index(L, P[0], P[1], P[2]), owned);
+		}
+	}
+}
+
+/// Unit vector of `a` without its component along the unit vector `e`.
+Eigen::Vector3d perpendicular(const Eigen::Vector3d& a, const Eigen::Vector3d& e)
+{
+	return (a - a.dot(e) * e).normalized();
+}
+
+/// Face region: the projection is inside the face (the three in-plane edge normals), the plane within clamp.
+void faceRegion(const TriMesh& mesh, int f, const PlaneTriangle& T, double clamp, FeatureRegion& R)
+{
+	R.reset(T.boxMin - clamp * T.n.cwiseAbs(), T.boxMax + clamp * T.n.cwiseAbs(), T.n); // the box of the prism
+	R.add(T.n, T.v0, clamp);
+	R.add(-T.n, T.v0, clamp);
+	for (int k = 0; k < 3; ++k)
+	{
+		const Eigen::Vector3d a = mesh.V.row(mesh.F(f, k)).transpose(), b = mesh.V.row(mesh.F(f, (k + 1) % 3)).transpose(),
+							  c = mesh.V.row(mesh.F(f, (k + 2) % 3)).transpose();
+		R.add(-perpendicular(c - a, (b - a).normalized()), a); // inward: (p - a) . m >= 0
+	}
+}
+
+/// Edge region: between the planes normal to the edge at its ends, and for every face on the edge, not on that
+/// face's side of the edge in its plane (else the face would hold a nearer point).
+void edgeRegion(const TriMesh& mesh, const MeshTopology& topo, int a, int b, const std::vector<int>& faces,
+				double clamp, FeatureRegion& R)
+{
+	const Eigen::Vector3d pa = mesh.V.row(a).transpose(), pb = mesh.V.row(b).transpose();
+	const Eigen::Vector3d e = (pb - pa).normalized();
+	// The region lies in the wedge between the normals of the faces (in the plane normal to the edge), within clamp of
+	// the edge: its box is the edge's grown by clamp times the normals' extents, plus the bulge of the arc between
+	// the two normals beyond its chord (1 - cos of half the largest angle between them).
+	Eigen::Vector3d extent = Eigen::Vector3d::Zero(), sum = Eigen::Vector3d::Zero();
+	double minCos = 1.0;
+	for (int g : faces)
+	{
+		const Eigen::Vector3d& n = topo.faceN[std::size_t(g)];
+		extent = extent.cwiseMax(n.cwiseAbs());
+		sum += n;
+		for (int h : faces)
+			minCos = std::min(minCos, n.dot(topo.faceN[std::size_t(h)]));
+	}
+	const double bulge = 1.0 - std::sqrt(std::max(0.0, 0.5 * (1.0 + minCos)));
+	const Eigen::Vector3d across = clamp * (extent + Eigen::Vector3d::Constant(faces.size() >= 2 ? bulge : 1.0));
+	R.reset(pa.cwiseMin(pb) - across, pa.cwiseMax(pb) + across, sum);
+	R.add(-e, pa);
+	R.add(e, pb);
+	for (int g : faces)
+		for (int k = 0; k < 3; ++k)
+			if (mesh.F(g, k) != a && mesh.F(g, k) != b)
+				R.add(perpendicular(mesh.V.row(mesh.F(g, k)).transpose() - pa, e), pa);
+}
+
+/// The box around v of the cone {d : d . e <= 0 for every e in `edges`} within clamp: the cone is spanned by its
+/// extreme rays (cross products of two edges that meet every constraint), so it lies in the circular cone around
+/// their mean a with the half-angle t of the widest, where |d_i| <= clamp (|a_i| + sin t). False when the cone is
+/// {0} (a saddle: no point but v has v as its nearest point). A wide cone (or one holding a line) gets the ball's box.
+bool vertexConeBox(const Eigen::Vector3d& pv, const std::vector<Eigen::Vector3d>& edges, double clamp,
+				   Eigen::Vector3d& lo, Eigen::Vector3d& hi)
+{
+	constexpr double kTolerance = 1e-9;
+	Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+	std::vector<Eigen::Vector3d> rays;
+	for (std::size_t i = 0; i < edges.size(); ++i)
+		for (std::size_t j = i + 1; j < edges.size(); ++j)
+		{
+			const Eigen::Vector3d r = edges[i].cross(edges[j]);
+			if (!(r.norm() > 1e-12))
+				continue;
+			for (const Eigen::Vector3d& ray : {Eigen::Vector3d(r.normalized()), Eigen::Vector3d(-r.normalized())})
+				if (std::all_of(edges.begin(), edges.end(), [&](const Eigen::Vector3d& e) { return ray.dot(e) <= kTolerance; }))
+					rays.push_back(ray), sum += ray;
+		}
+	if (rays.empty())
+		return false;
+	Eigen::Vector3d extent = Eigen::Vector3d::Constant(clamp);
+	if (sum.norm() > 0.5 * double(rays.size()))
+	{
+		const Eigen::Vector3d a = sum.normalized();
+		double minCos = 1.0;
+		for (const Eigen::Vector3d& r : rays)
+			minCos = std::min(minCos, r.dot(a));
+		if (minCos > 0.3)
+			extent = clamp * (a.cwiseAbs() + Eigen::Vector3d::Constant(std::sqrt(1.0 - minCos * minCos))).cwiseMin(1.0);
+	}
+	lo = pv - extent, hi = pv + extent;
+	return true;
+}
+
+/// Vertex region: (p - v) . e <= 0 for every edge direction e leaving v (else the edge would hold a nearer point).
+/// False when it holds no point but v.
+bool vertexRegion(const TriMesh& mesh, const MeshTopology& topo, const std::vector<int>& planeOf, int v, double clamp,
+				  FeatureRegion& R)
+{
+	const Eigen::Vector3d pv = mesh.V.row(v).transpose();
+	R.reset(pv, pv, topo.vertexN[std::size_t(v)]);
+	for (int s = topo.start[std::size_t(v)]; s < topo.start[std::size_t(v) + 1]; ++s)
+	{
+		const int g = topo.faces[std::size_t(s)];
+		if (planeOf[std::size_t(g)] < 0)
+			continue;
+		for (int k = 0; k < 3; ++k) // the edge to the next corner: each neighbour once on a closed manifold
+			if (mesh.F(g, k) == v)
+				R.add((mesh.V.row(mesh.F(g, (k + 1) % 3)).transpose() - pv).normalized(), pv);
+	}
+	return vertexConeBox(pv, R.n, clamp, R.lo, R.hi);
+}
+
+/// Step 2: every lattice point within clamp of the skin gets its exact nearest distance and sign, by scanning each
+/// feature's region with a face that holds the feature (the face is at least as near as the feature, and no nearer
+/// than the skin).
+void exactDistances(const TriMesh& mesh, const MeshTopology& topo, const std::vector<PlaneTriangle>& planes,
+					const std::vector<int>& planeOf, const Lattice& L, double clamp, OwnedPoints& owned)
+{
+	FeatureRegion R;
+	std::vector<int> faces;
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		const int plane = planeOf[std::size_t(f)];
+		if (plane < 0)
+			continue;
+		faceRegion(mesh, f, planes[std::size_t(plane)], clamp, R);
+		scan(R, planes[std::size_t(plane)], L, owned);
+		for (int k = 0; k < 3; ++k)
+		{
+			const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3);
+			topo.edgeFaces(mesh, a, b, faces);
+			faces.erase(std::remove_if(faces.begin(), faces.end(), [&](int g) { return planeOf[std::size_t(g)] < 0; }),
+						faces.end());
+			if (faces.front() != f)
+				continue; // each edge once, from its first face
+			edgeRegion(mesh, topo, a, b, faces, clamp, R);
+			scan(R, planes[std::size_t(plane)], L, owned);
+		}
+	}
+	for (int v = 0; v < mesh.vertexCount(); ++v)
+		for (int s = topo.start[std::size_t(v)]; s < topo.start[std::size_t(v) + 1]; ++s)
+		{
+			const int plane = planeOf[std::size_t(topo.faces[std::size_t(s)])];
+			if (plane < 0)
+				continue;
+			if (vertexRegion(mesh, topo, planeOf, v, clamp, R))
+				scan(R, planes[std::size_t(plane)], L, owned);
+			break;
+		}
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Step 3: signs where the pseudo-normal fails, then the sign of the points at |d| >= clamp and of the bricks that
+// are not near.
+
+/// Global lattice coordinates of owned point p.
+void latticeOf(const Lattice& L, const OwnedPoints& owned, long long p, long long P[3])
+{
+	const int brick = owned.slotBrick[std::size_t(p / kOwned)], local = int(p % kOwned);
+	P[0] = (long long)(brick % L.dims[0]) * B + local % B;
+	P[1] = (long long)((brick / L.dims[0]) % L.dims[1]) * B + (local / B) % B;
+	P[2] = (long long)(brick / (L.dims[0] * L.dims[1])) * B + local / (B * B);
+}
+
+/// Step 3a. A distance field is 1-Lipschitz: two neighbouring exact points whose signed distances differ by more than
+/// the voxel have a wrong sign between them. The pseudo-normal sign fails where the mesh passes through itself (toes
+/// or fingers pressed into each other): there the ray-parity test of fitting/inside_test.h (inside the union of the
+/// closed components, a vote over three axes) decides both points' signs, and a point whose sign it changes has its
+/// exact neighbours decided the same way in turn. Returns the number of signs changed.
+int repairSigns(const TriMesh& mesh, const Lattice& L, OwnedPoints& owned)
+{
+	const double limit = L.h * (1.0 + 1e-5) + 1e-9; // the distances went through float
+	auto signedDistance = [&](long long p) { return owned.sign[std::size_t(p)] * std::sqrt(double(owned.best2[std::size_t(p)])); };
+	auto exactNeighbour = [&](const long long P[3], int axis, int dir) {
+		long long Q[3] = {P[0], P[1], P[2]};
+		Q[axis] += dir;
+		const long long q = owned.index(L, Q[0], Q[1], Q[2]);
+		return q >= 0 && owned.touched(q) ? q : -1;
+	};
+	std::vector<long long> queue;
+	std::vector<char> queued(owned.best2.size(), 0);
+	auto push = [&](long long q) {
+		if (!queued[std::size_t(q)])
+			queued[std::size_t(q)] = 1, queue.push_back(q);
+	};
+	// The unsigned distance is 1-Lipschitz whatever the signs: only a pair of opposite signs can break the bound.
+	auto suspect = [&](long long p, long long q) {
+		return q >= 0 && owned.sign[std::size_t(p)] != owned.sign[std::size_t(q)] &&
+			   std::abs(signedDistance(p) - signedDistance(q)) > limit;
+	};
+	long long P[3];
+	for (long long slot = 0; slot < (long long)owned.slotBrick.size(); ++slot)
+		for (int c = 0; c < B; ++c)
+			for (int b = 0; b < B; ++b)
+				for (int a = 0; a < B; ++a)
+				{
+					const long long p = slot * kOwned + a + B * (b + B * c);
+					if (!owned.touched(p))
+						continue;
+					const int local[3] = {a, b, c}, stride[3] = {1, B, B * B};
+					for (int axis = 0; axis < 3; ++axis)
+					{
+						long long q = -1; // the +axis neighbour: in the same brick, or found through the lattice
+						if (local[axis] < B - 1)
+							q = owned.touched(p + stride[axis]) ? p + stride[axis] : -1;
+						else
+							latticeOf(L, owned, p, P), q = exactNeighbour(P, axis, 1);
+						if (suspect(p, q))
+							push(p), push(q);
+					}
+				}
+	if (queue.empty())
+		return 0;
+	const MeshInsideTest inside(mesh);
+	int changed = 0;
+	for (std::size_t head = 0; head < queue.size(); ++head)
+	{
+		const long long p = queue[head];
+		latticeOf(L, owned, p, P);
+		const std::int8_t sign = inside.isInside(L.point(P[0], P[1], P[2])) ? -1 : 1;
+		if (sign == owned.sign[std::size_t(p)])
+			continue;
+		owned.sign[std::size_t(p)] = sign;
+		++changed;
+		for (int axis = 0; axis < 3; ++axis)
+			for (int dir = -1; dir <= 1; dir += 2)
+				if (const long long q = exactNeighbour(P, axis, dir); q >= 0)
+					push(q);
+	}
+	return changed;
+}
+
+
+
+/// Sign of a far point at X of a row from the exact points of the row (sorted X, their signs): the one that ends its
+/// run on the nearer side, or + where the run reaches the grid's border. `next` is the first exact point after X.
+std::int8_t runSign(const std::vector<long long>& exactX, const std::vector<std::int8_t>& exactSign, std::size_t next,
+					long long X, long long rowLength)
+{
+	const long long left = next > 0 ? X - exactX[next - 1] : X + 1;
+	const long long right = next < exactX.size() ? exactX[next] - X : rowLength - X;
+	const std::int8_t leftSign = next > 0 ? exactSign[next - 1] : 1;
+	const std::int8_t rightSign = next < exactX.size() ? exactSign[next] : 1;
+	return left <= right ? leftSign : rightSign;
+}
+
+/// Step 3 for the far points (no triangle within clamp; every point of a brick that is not near): along every
+/// lattice row in x, a run of far points takes the sign of the exact point ending it on the nearer side, or + where
+/// it reaches the border (the border bricks are far outside). Two neighbouring points at |d| >= clamp > h, or such a
+/// point and its neighbour, are never on the two sides of the skin, so both ends of a run agree (the nearer one
+/// decides if a wrong sign made them differ). A brick that is not near takes the sign of its row at y = z = 0.
+void signFarPoints(const Lattice& L, OwnedPoints& owned, std::vector<std::int8_t>& brickSign)
+{
+	const long long rowLength = L.ownedExtent(0);
+	std::vector<long long> exactX;
+	std::vector<std::int8_t> exactSign;
+	std::vector<int> nearI;
+	for (int k = 0; k < L.dims[2]; ++k)
+		for (int j = 0; j < L.dims[1]; ++j)
+		{
+			nearI.clear();
+			for (int i = 0; i < L.dims[0]; ++i)
+				if (owned.brickSlot[std::size_t(L.brickId(i, j, k))] >= 0)
+					nearI.push_back(i);
+			for (int c = 0; c < B; ++c)
+				for (int b = 0; b < B; ++b)
+				{
+					exactX.clear(), exactSign.clear();
+					for (int i : nearI)
+						for (int a = 0; a < B; ++a)
+						{
+							const long long p = (long long)owned.brickSlot[std::size_t(L.brickId(i, j, k))] * kOwned + a + B * (b + B * c);
+							if (owned.touched(p))
+								exactX.push_back((long long)i * B + a), exactSign.push_back(owned.sign[std::size_t(p)]);
+						}
+					std::size_t next = 0;
+					for (int i : nearI)
+						for (int a = 0; a < B; ++a)
+						{
+							const long long p = (long long)owned.brickSlot[std::size_t(L.brickId(i, j, k))] * kOwned + a + B * (b + B * c);
+							const long long X = (long long)i * B + a;
+							while (next < exactX.size() && exactX[next] < X)
+								++next;
+							if (!owned.touched(p))
+								owned.sign[std::size_t(p)] = runSign(exactX, exactSign, next, X, rowLength);
+						}
+					if (b != 0 || c != 0)
+						continue;
+					next = 0;
+					for (int i = 0; i < L.dims[0]; ++i)
+					{
+						const long long X = (long long)i * B;
+						while (next < exactX.size() && exactX[next] < X)
+							++next;
+						if (owned.brickSlot[std::size_t(L.brickId(i, j, k))] < 0)
+							brickSign[std::size_t(L.brickId(i, j, k))] = runSign(exactX, exactSign, next, X, rowLength);
+					}
+				}
+		}
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Steps 4-5: quanta, the conservative pass, the stored bricks.
+
+/// Quanta of the global lattice point (X, Y, Z) during the bake: its owned value, or the sign of the brick holding
+/// it at full clamp (not near: |d| >= clamp), or +clamp off the grid.
+int latticeQuanta(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign, long long X,
+				  long long Y, long long Z)
+{
+	const long long p = owned.index(L, X, Y, Z);
+	if (p >= 0)
+		return owned.quanta[std::size_t(p)];
+	if (X < 0 || Y < 0 || Z < 0 || X >= L.ownedExtent(0) || Y >= L.ownedExtent(1) || Z >= L.ownedExtent(2))
+		return kMaxQuanta;
+	return brickSign[std::size_t(L.brickId(int(X / B), int(Y / B), int(Z / B)))] < 0 ? -kMaxQuanta : kMaxQuanta;
+}
+
+void quantise(OwnedPoints& owned, double quantum)
+{
+	owned.quanta.resize(owned.best2.size());
+	for (std::size_t p = 0; p < owned.best2.size(); ++p)
+	{
+		const double magnitude =
+			owned.touched((long long)p) ? std::min(double(kMaxQuanta), std::round(std::sqrt(double(owned.best2[p])) / quantum))
+										: double(kMaxQuanta);
+		owned.quanta[p] = std::int16_t(owned.sign[p] < 0 ? -magnitude : magnitude);
+	}
+}
+
+/// The owned points at the 8 corners of a cell (corner n at +(n & 1, n >> 1 & 1, n >> 2) lattice steps; -1 for a
+/// corner in a brick that is not near, whose quanta are then in `constant`), and the trilinear reading in quanta.
+struct CellCorners
+{
+	long long point[8];
+	int constant[8];
+	double weight[8];
+
+	CellCorners(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign, const CellLocation& c)
+	{
+		for (int n = 0; n < 8; ++n)
+			weight[n] = ((n & 1) ? c.frac[0] : 1.0 - c.frac[0]) * ((n & 2) ? c.frac[1] : 1.0 - c.frac[1]) *
+						((n & 4) ? c.frac[2] : 1.0 - c.frac[2]);
+		const int slot = owned.brickSlot[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))];
+		if (slot >= 0 && c.cell[0] < B - 1 && c.cell[1] < B - 1 && c.cell[2] < B - 1)
+		{
+			const long long base = (long long)slot * kOwned + c.cell[0] + B * (c.cell[1] + B * c.cell[2]);
+			for (int n = 0; n < 8; ++n) // all 8 corners in the cell's own brick
+				point[n] = base + (n & 1) + B * ((n >> 1) & 1) + B * B * (n >> 2);
+			return;
+		}
+		const long long X = (long long)c.brick[0] * B + c.cell[0], Y = (long long)c.brick[1] * B + c.cell[1],
+						Z = (long long)c.brick[2] * B + c.cell[2];
+		for (int n = 0; n < 8; ++n)
+		{
+			point[n] = owned.index(L, X + (n & 1), Y + ((n >> 1) & 1), Z + (n >> 2));
+			if (point[n] < 0)
+				constant[n] = latticeQuanta(L, owned, brickSign, X + (n & 1), Y + ((n >> 1) & 1), Z + (n >> 2));
+		}
+	}
+
+	/// The reading in quanta: the same sum, in the same order, as trilinear() in sample().
+	double reading(const OwnedPoints& owned) const
+	{
+		double sum = 0.0;
+		for (int n = 0; n < 8; ++n)
+			if (weight[n] != 0.0)
+				sum += weight[n] * double(point[n] >= 0 ? owned.quanta[std::size_t(point[n])] : constant[n]);
+		return sum;
+	}
+};
+
+/// Step 4: every skin sample that reads r > 0 has the 8 corners of its cell lowered by the least change that brings
+/// it to 0 (corner i by w_i r / sum w^2, w the trilinear weights, rounded up to whole quanta). Lowering never raises a
+/// reading, so one pass leaves no sample > 0. Marks the brick each sample is read from in `holdsSkin`; returns the
+/// number of samples that read > 0.
+int lowerSkinReadings(const Lattice& L, const std::vector<Eigen::Vector3d>& samples, OwnedPoints& owned,
+					  const std::vector<std::int8_t>& brickSign, std::vector<char>& holdsSkin)
+{
+	int lowered = 0;
+	for (const Eigen::Vector3d& p : samples)
+	{
+		CellLocation c;
+		if (!locateCell(L.origin, L.h, L.dims, p, c))
+			continue; // cannot happen: the grid holds the mesh's box
+		holdsSkin[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))] = 1;
+		const CellCorners corners(L, owned, brickSign, c);
+		const double reading = corners.reading(owned);
+		if (reading <= 0.0)
+			continue;
+		++lowered;
+		double sum2 = 0.0;
+		for (double w : corners.weight)
+			sum2 += w * w;
+		for (int n = 0; n < 8; ++n)
+		{
+			const long long q = corners.point[n];
+			if (q < 0 || corners.weight[n] == 0.0) // q >= 0 always: a corner is within sqrt(3) h < clamp of the skin
+				continue;
+			const int by = int(std::ceil(corners.weight[n] * reading / sum2));
+			owned.quanta[std::size_t(q)] = std::int16_t(std::max(-kMaxQuanta, owned.quanta[std::size_t(q)] - by));
+		}
+	}
+	return lowered;
+}
+
+/// The largest |reading| at the skin samples (metres; the true distance there is 0), read as sample() reads the
+/// stored field: the bricks holding skin samples are stored, with the owned points' values.
+double largestSkinReading(const Lattice& L, const std::vector<Eigen::Vector3d>& samples, const OwnedPoints& owned,
+						  const std::vector<std::int8_t>& brickSign, double quantum, double clamp)
+{
+	double worst = 0.0;
+	for (const Eigen::Vector3d& p : samples)
+	{
+		CellLocation c;
+		if (locateCell(L.origin, L.h, L.dims, p, c))
+			worst = std::max(worst, std::abs(std::clamp(CellCorners(L, owned, brickSign, c).reading(owned) * quantum,
+														-clamp, clamp)));
+	}
+	return worst;
+}
+
+/// The ellipsoid union grown by r, for the test of a brick: the boxes, the smallest semi-axes.
+struct GrownUnion
+{
+	const std::vector<Ellipsoid>& ellipsoids;
+	double r;
+	std::vector<Eigen::AlignedBox3d> boxes;
+	std::vector<double> minAxis;
+
+	GrownUnion(const std::vector<Ellipsoid>& e, double grow) : ellipsoids(e), r(grow)
+	{
+		for (const Ellipsoid& el : e)
+			boxes.push_back(el.aabb()), minAxis.push_back(el.radii.minCoeff());
+	}
+
+	/// The brick (centre, half-diagonal) meets the grown union (conservative: the distance from a point to an
+	/// ellipsoid is at least (sqrt(zeta) - 1) times its smallest semi-axis). No ellipsoids: true (nothing bounds the
+	/// skin, every near brick is kept).
+	bool meets(const Eigen::Vector3d& centre, double halfDiagonal) const
+	{
+		if (ellipsoids.empty())
+			return true;
+		const double reach = r + halfDiagonal;
+		for (std::size_t i = 0; i < ellipsoids.size(); ++i)
+		{
+			if ((centre.array() < boxes[i].min().array() - reach).any() ||
+				(centre.array() > boxes[i].max().array() + reach).any())
+				continue;
+			if ((std::sqrt(ellipsoids[i].zeta(centre)) - 1.0) * minAxis[i] <= reach)
+				return true;
+		}
+		return false;
+	}
+};
+
+/// A lattice point of the brick is inside the skin: the brick must be stored even outside the grown union (a fit's
+/// union can leave pockets under the skin uncovered; far outside there would be wrong, and would put a far-outside
+/// brick next to a far-inside one, which btSkinDistanceField refuses).
+bool holdsInside(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign, int brick)
+{
+	const long long X0 = (long long)(brick % L.dims[0]) * B, Y0 = (long long)((brick / L.dims[0]) % L.dims[1]) * B,
+					Z0 = (long long)(brick / (L.dims[0] * L.dims[1])) * B;
+	for (int c = 0; c <= B; ++c)
+		for (int b = 0; b <= B; ++b)
+			for (int a = 0; a <= B; ++a)
+				if (latticeQuanta(L, owned, brickSign, X0 + a, Y0 + b, Z0 + c) <= 0)
+					return true;
+	return false;
+}
+
+/// Step 5 and the layout: brick index, samples of the stored bricks, and the largest error at their band points.
+void gatherBricks(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign,
+				  const std::vector<char>& stored, SkinField& field)
+{
+	field.brickIndex.assign(std::size_t(L.brickCount()), kFarOutside);
+	const double quantum = field.quantum();
+	int blocks = 0;
+	for (int brick = 0; brick < int(L.brickCount()); ++brick)
+	{
+		if (!stored[std::size_t(brick)])
+		{
+			const bool far = owned.brickSlot[std::size_t(brick)] < 0;
+			field.brickIndex[std::size_t(brick)] = far && brickSign[std::size_t(brick)] < 0 ? kFarInside : kFarOutside;
+			continue;
+		}
+		field.brickIndex[std::size_t(brick)] = blocks++;
+		const int id[3] = {brick % L.dims[0], (brick / L.dims[0]) % L.dims[1], brick / (L.dims[0] * L.dims[1])};
+		// The brick's samples come from the points it owns and, on its upper faces (a, b or c = B), from the points
+		// of the 7 bricks above it: their slots, or the quanta of a brick that is not near (or off the grid).
+		int slot[8], constant[8];
+		for (int n = 0; n < 8; ++n)
+		{
+			const int i = id[0] + (n & 1), j = id[1] + ((n >> 1) & 1), k = id[2] + (n >> 2);
+			const bool onGrid = i < L.dims[0] && j < L.dims[1] && k < L.dims[2];
+			slot[n] = onGrid ? owned.brickSlot[std::size_t(L.brickId(i, j, k))] : -1;
+			constant[n] = onGrid && brickSign[std::size_t(L.brickId(i, j, k))] < 0 ? -kMaxQuanta : kMaxQuanta;
+		}
+		for (int c = 0; c <= B; ++c)
+			for (int b = 0; b <= B; ++b)
+				for (int a = 0; a <= B; ++a)
+				{
+					const int n = (a == B) + 2 * (b == B) + 4 * (c == B);
+					if (slot[n] < 0)
+					{
+						field.samples.push_back(std::int16_t(constant[n]));
+						continue;
+					}
+					const std::size_t p = std::size_t(slot[n]) * kOwned + std::size_t(a % B + B * (b % B + B * (c % B)));
+					const int q = owned.quanta[p];
+					field.samples.push_back(std::int16_t(q));
+					if (owned.touched((long long)p))
+					{
+						const double exact = owned.sign[p] * std::sqrt(double(owned.best2[p]));
+						field.maxError = std::max(field.maxError, std::abs(q * quantum - exact));
+					}
+				}
+	}
+}
+
+void checkMesh(const TriMesh& mesh)
+{
+	if (mesh.faceCount() == 0)
+		throw InvalidInputError("bakeSkinField: the mesh has no faces");
+	if (!mesh.V.allFinite())
+		throw InvalidInputError("bakeSkinField: the mesh has non-finite vertex coordinates");
+	if (mesh.F.minCoeff() < 0 || mesh.F.maxCoeff() >= mesh.vertexCount())
+		throw InvalidInputError("bakeSkinField: a face index is out of range (" + std::to_string(mesh.F.maxCoeff()) +
+								" with " + std::to_string(mesh.vertexCount()) + " vertices)");
+}
+
+} // namespace
+
+std::vector<Eigen::Vector3d> skinSamplePoints(const TriMesh& mesh, double voxel)
+{
+	auto divisions = [voxel](double length) { return int(std::clamp(std::ceil(length / voxel), 3.0, 64.0)); };
+	std::vector<Eigen::Vector3d> out;
+	out.reserve(std::size_t(mesh.vertexCount() + 4 * mesh.faceCount()));
+	for (int v = 0; v < mesh.vertexCount(); ++v)
+		out.push_back(mesh.V.row(v).transpose());
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		const Eigen::Vector3d p[3] = {mesh.V.row(mesh.F(f, 0)).transpose(), mesh.V.row(mesh.F(f, 1)).transpose(),
+									  mesh.V.row(mesh.F(f, 2)).transpose()};
+		for (int k = 0; k < 3; ++k)
+			if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3)) // each edge once: from the face where it runs up the indices
+			{
+				const Eigen::Vector3d &a = p[k], &b = p[(k + 1) % 3];
+				const int n = divisions((b - a).norm());
+				for (int i = 1; i < n; ++i)
+					out.push_back((double(n - i) * a + double(i) * b) / double(n));
+			}
+		const int n = divisions(std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()}));
+		for (int i = 1; i < n; ++i)
+			for (int j = 1; i + j < n; ++j)
+				out.push_back((double(i) * p[0] + double(j) * p[1] + double(n - i - j) * p[2]) / double(n));
+	}
+	return out;
+}
+
+std::size_t SkinField::bytes() const
+{
+	return sizeof(SkinField) + brickIndex.size() * sizeof(std::int32_t) + samples.size() * sizeof(std::int16_t);
+}
+
+void validateSkinFieldOptions(const SkinFieldOptions& o)
+{
+	auto check = [](double v, double lo, double hi, const char* name) {
+		if (!(std::isfinite(v) && v >= lo && v <= hi))
+			throw InvalidInputError(std::string("skin field: ") + name + " must be in [" + std::to_string(lo) + ", " +
+									std::to_string(hi) + "] m (got " + std::to_string(v) + ")");
+	};
+	check(o.voxel, 0.0005, 0.05, "voxel");
+	check(o.clamp, 2.0 * o.voxel, 0.1, "clamp (at least 2 voxels)");
+	check(o.skinOffset, 0.0, 0.1, "skin offset");
+}
+
+SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellipsoids, const SkinFieldOptions& options)
+{
+	validateSkinFieldOptions(options);
+	checkMesh(mesh);
+	const Lattice L = makeLattice(mesh, options);
+	const MeshTopology topo(mesh);
+	std::vector<int> planeOf;
+	const std::vector<PlaneTriangle> planes = planeTriangles(mesh, topo, planeOf);
+
+	OwnedPoints owned = nearBricks(L, planes, options.clamp);
+	exactDistances(mesh, topo, planes, planeOf, L, options.clamp, owned);
+	const int repaired = repairSigns(mesh, L, owned);
+	std::vector<std::int8_t> brickSign(std::size_t(L.brickCount()), 0);
+	signFarPoints(L, owned, brickSign);
+
+	SkinField field;
+	field.repairedSigns = repaired;
+	field.origin = L.origin;
+	field.voxel = L.h;
+	field.clamp = options.clamp;
+	field.skinOffset = options.skinOffset;
+	field.nx = L.dims[0], field.ny = L.dims[1], field.nz = L.dims[2];
+	quantise(owned, field.quantum());
+
+	const std::vector<Eigen::Vector3d> skin = skinSamplePoints(mesh, L.h);
+	std::vector<char> stored(std::size_t(L.brickCount()), 0);
+	field.loweredSamples = lowerSkinReadings(L, skin, owned, brickSign, stored);
+	const double halfDiagonal = 0.5 * std::sqrt(3.0) * B * L.h;
+	const GrownUnion grown(ellipsoids, options.skinOffset + 2.0 * L.h);
+	for (int slot = 0; slot < int(owned.slotBrick.size()); ++slot)
+	{
+		const int brick = owned.slotBrick[std::size_t(slot)];
+		const int i = brick % L.dims[0], j = (brick / L.dims[0]) % L.dims[1], k = brick / (L.dims[0] * L.dims[1]);
+		const Eigen::Vector3d centre = L.point((long long)i * B, (long long)j * B, (long long)k * B) +
+									   Eigen::Vector3d::Constant(0.5 * B * L.h);
+		if (!stored[std::size_t(brick)] && (grown.meets(centre, halfDiagonal) || holdsInside(L, owned, brickSign, brick)))
+			stored[std::size_t(brick)] = 1;
+	}
+	gatherBricks(L, owned, brickSign, stored, field);
+	field.maxError =
+		std::max(field.maxError, largestSkinReading(L, skin, owned, brickSign, field.quantum(), field.clamp));
+	return field;
+}
+
+double sample(const SkinField& field, const Eigen::Vector3d& p)
+{
+	const int dims[3] = {field.nx, field.ny, field.nz};
+	CellLocation c;
+	if (field.empty() || !locateCell(field.origin, field.voxel, dims, p, c))
+		return field.clamp;
+	const std::int32_t s = field.brickIndex[std::size_t(c.brick[0] + field.nx * (c.brick[1] + field.ny * c.brick[2]))];
+	if (s == kFarOutside)
+		return field.clamp;
+	if (s < 0)
+		return -field.clamp;
+	const std::int16_t* block = field.samples.data() + std::size_t(s) * kSkinBrickSamples;
+	const double quanta = trilinear(c, [&](int dx, int dy, int dz) {
+		return block[(c.cell[0] + dx) + (B + 1) * ((c.cell[1] + dy) + (B + 1) * (c.cell[2] + dz))];
+	});
+	return std::clamp(quanta * field.quantum(), -field.clamp, field.clamp);
+}
+
+} // namespace bodyfit
