@@ -138,15 +138,15 @@ TEST_CASE("cli: a fit writes readable JSON and the ellipsoid mesh, creating the 
 
 	// --no-skin-field: no side file, no section; --skin-voxel / --skin-clamp reach the bake.
 	const std::string json4 = (dir / "fit4.json").string();
-	const Run none = run(quoted(bodyfit_test::assetPath("male_young.4508v.obj")) + " -o " + quoted(json4) + " --no-skin-field");
-	REQUIRE(none.status == 0);
+	const bodyfit_test::ProgramRun none = run(quoted(bodyfit_test::assetPath("male_young.4508v.obj")) + " -o " + quoted(json4) + " --no-skin-field");
+	REQUIRE(none.exitCode == 0);
 	CHECK(none.out.find("no skin field (--no-skin-field)") != std::string::npos);
 	CHECK_FALSE(fs::exists(dir / "fit4.skin"));
 	CHECK_FALSE(bodyfit::readEllipsoidJson(json4).skinField);
 	const std::string json5 = (dir / "fit5.json").string();
 	REQUIRE(run(quoted(bodyfit_test::assetPath("male_young.4508v.obj")) + " -o " + quoted(json5) +
 				" --skin-voxel 0.008 --skin-clamp 0.02")
-				.status == 0);
+				.exitCode == 0);
 	const bodyfit::BodyFit coarse = bodyfit::readEllipsoidJson(json5);
 	REQUIRE(coarse.skinField);
 	CHECK(coarse.skinField->voxel == 0.008);
