@@ -321,6 +321,7 @@ ColliderSpec parseCollider(const json& j, ObjectReader& top)
 	c.sdfVoxel = r.number("sdf_voxel_m", c.sdfVoxel, 0.001, 1.0);
 	c.shapeMargin = r.number("shape_margin_m", c.shapeMargin, 0.0, 0.1);
 	c.contactHardness = r.number("contact_hardness", c.contactHardness, 0.0, 1.0, true);
+	c.tightSurface = r.string("surface", "tight", {"tight", "ellipsoids"}) == "tight";
 	r.finish();
 	return c;
 }

@@ -10,11 +10,13 @@
 #include "bodyfit/fitting/inside_test.h"
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/segmentation.h"
+#include "bodyfit/fitting/skin_field.h"
 #include "bodyfit/fitting/statistics.h"
 #include "bodyfit/bullet_ext/btTiming.h"
 
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
+#include "bodyfit/bullet_ext/btSkinDistanceField.h"
 #include "bodyfit/bridge/btBodyFitToBullet.h"
 #include "bodyfit/bridge/btEigenConversion.h"
 #include "bodyfit/metrics/cloth_metrics.h"
@@ -265,15 +267,10 @@ BodyData loadAnimatedBody(const Scene& scene, const LoadOptions& lo, const std::
 	return body;
 }
 
-} // namespace
-
-BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std::string& ellipsoidOverride)
+/// The static body of loadBody, with the fit file's skin field when it has one.
+BodyData loadStaticBody(const Scene& scene, const LoadOptions& lo, const std::string& meshOverride,
+						const std::string& ellipsoidOverride)
 {
-	LoadOptions lo;
-	lo.up = scene.body.up;
-	lo.scale = scene.body.scale;
-	if (scene.body.animation)
-		return loadAnimatedBody(scene, lo, meshOverride, ellipsoidOverride);
 	BodyData body;
 	body.meshPath = meshOverride.empty() ? scene.body.mesh : meshOverride;
 	const bool otherBody = !meshOverride.empty() && fileNameOf(meshOverride) != fileNameOf(scene.body.mesh);
@@ -306,7 +303,36 @@ BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std
 		for (const FittedEllipsoid& e : fit.ellipsoids)
 			body.ellipsoids.push_back(e.ellipsoid);
 		body.ellipsoidSource = fitFile;
+		body.skinField = fit.skinField;
 	}
+	return body;
+}
+
+/// The tight surface needs the body's skin field: a static body whose fit brought none gets it baked now, for the
+/// scene's skin offset (skin_field.h; about 0.1 s for a 13k-vertex body).
+void ensureSkinField(const Scene& scene, BodyData& body)
+{
+	if (scene.collider.kind != ColliderKind::Ellipsoids || !scene.collider.tightSurface || body.animation ||
+		body.skinField || body.ellipsoids.empty())
+		return;
+	SkinFieldOptions options;
+	options.skinOffset = scene.collider.skinOffset;
+	const auto t0 = std::chrono::steady_clock::now();
+	body.skinField = std::make_shared<const SkinField>(bakeSkinField(body.mesh, body.ellipsoids, options));
+	body.skinFieldSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+} // namespace
+
+BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std::string& ellipsoidOverride)
+{
+	LoadOptions lo;
+	lo.up = scene.body.up;
+	lo.scale = scene.body.scale;
+	if (scene.body.animation)
+		return loadAnimatedBody(scene, lo, meshOverride, ellipsoidOverride);
+	BodyData body = loadStaticBody(scene, lo, meshOverride, ellipsoidOverride);
+	ensureSkinField(scene, body);
 	return body;
 }
 
@@ -336,6 +362,9 @@ struct DrapeSimulation::Impl
 	std::string buildMeshShape(const Scene& scene, const TriMesh& mesh);
 	std::string buildHullCompound(const Scene& scene, const BodyData& body);
 	std::string buildBodyShape(const Scene& scene, const BodyData& body);
+	/// Attaches the body's skin field to the ellipsoid compound when the scene asks for the tight surface; says
+	/// which surface the collider decides contact on.
+	std::string attachSkinField(const Scene& scene, const BodyData& body);
 	void addBodyObject(const btTransform& pose0);
 	/// The body reference of the metrics at the pose of time t.
 	const metrics::BodyReference& referenceAt(double t) const;
@@ -463,6 +492,25 @@ std::string DrapeSimulation::Impl::buildHullCompound(const Scene& scene, const B
 	return desc.str();
 }
 
+std::string DrapeSimulation::Impl::attachSkinField(const Scene& scene, const BodyData& body)
+{
+	if (!scene.collider.tightSurface)
+		return "ellipsoid surface (paper response)";
+	if (body.animation)
+		return "ellipsoid surface (an animated body has no skin field: its skin moves)";
+	if (!body.skinField)
+		return "ellipsoid surface (no skin field)";
+	std::unique_ptr<btSkinDistanceField> field = createSkinDistanceField(*body.skinField);
+	const char* why = nullptr;
+	if (!ellipsoidCompound->setSkinField(field.get(), true, &why))
+		throw InvalidInputError(std::string("skin field: ") + why);
+	field.release(); // owned by the compound now
+	char buf[160];
+	std::snprintf(buf, sizeof buf, "tight skin surface (skin field: voxel %.1f mm, %d bricks, max error %.2f mm)",
+				  body.skinField->voxel * 1e3, body.skinField->storedBricks(), body.skinField->maxError * 1e3);
+	return buf;
+}
+
 std::string DrapeSimulation::Impl::buildBodyShape(const Scene& scene, const BodyData& body)
 {
 	std::ostringstream desc;
@@ -472,7 +520,7 @@ std::string DrapeSimulation::Impl::buildBodyShape(const Scene& scene, const Body
 	case ColliderKind::Ellipsoids:
 		ellipsoidCompound = createEllipsoidCompound(body.ellipsoids);
 		desc << ": " << body.ellipsoids.size() << " ellipsoids, skin offset " << scene.collider.skinOffset * 1000
-			 << " mm, Bullet's soft response to the body disabled";
+			 << " mm, " << attachSkinField(scene, body) << ", Bullet's soft response to the body disabled";
 		break;
 	case ColliderKind::EllipsoidsSdf:
 	{
@@ -585,6 +633,7 @@ void DrapeSimulation::installCollider(bool refuseFarFromOrigin)
 	btEllipsoidClothCollider::Config cfg;
 	cfg.m_skinOffset = btScalar(scene_.collider.skinOffset);
 	cfg.m_friction = btScalar(scene_.effects.friction ? scene_.effects.friction->coefficient : 0.0);
+	cfg.m_surface = scene_.collider.tightSurface ? btEllipsoidClothCollider::TIGHT_SKIN : btEllipsoidClothCollider::ELLIPSOIDS;
 	const char* why = nullptr;
 	btEllipsoidClothSoftBodySolver* solver = static_cast<btEllipsoidClothSoftBodySolver*>(impl_->softSolver.get());
 	collider_ = solver->installCollider(impl_->world.get(), impl_->bodyObject.get(), cfg, &why);
@@ -593,6 +642,7 @@ void DrapeSimulation::installCollider(bool refuseFarFromOrigin)
 		// Measuring past the limit on purpose: install with a skin the check accepts, then restore the skin.
 		btEllipsoidClothCollider::Config loose = cfg;
 		loose.m_skinOffset = btScalar(1); // the largest skin Config validation accepts: resolved up to ~2,000 km
+		loose.m_surface = btEllipsoidClothCollider::ELLIPSOIDS; // (a 1 m skin is beyond any skin field's band)
 		collider_ = solver->installCollider(impl_->world.get(), impl_->bodyObject.get(), loose, &why);
 		if (collider_)
 			collider_->setConfig(cfg);

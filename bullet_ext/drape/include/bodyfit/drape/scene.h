@@ -79,6 +79,9 @@ struct ColliderSpec
 	double sdfVoxel = 0.02;      ///< Bullet paths: sparse-SDF voxel size (m); Bullet's default 0.25 is far too coarse
 	double shapeMargin = 0.004;  ///< Bullet paths: collision margin of the body shape (m; ellipsoids-sdf: per child)
 	double contactHardness = 1.0;///< Bullet paths: kKHR (static/kinematic contact hardness); Bullet's default 0.1 sinks
+	/// ellipsoids: "tight" (default) decides contact on the body's skin field (the fit's side file, or baked at load)
+	/// inside the union; "ellipsoids" is the paper's pure ellipsoid response. Animated bodies use the ellipsoids.
+	bool tightSurface = true;
 };
 
 enum class GarmentType

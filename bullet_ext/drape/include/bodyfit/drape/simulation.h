@@ -58,6 +58,10 @@ struct BodyData
 	/// Set for an animated body: then `mesh` is the rig's bind mesh (repaired, the skinning's vertex order) and
 	/// `ellipsoids` the bind-pose fit; the simulation poses both at every substep.
 	std::shared_ptr<const AnimatedBodyData> animation;
+	/// The skin field of a static body for the tight surface: the fit file's (its side file), or baked at load when
+	/// the scene's collider asks for the tight surface and the fit has none (0 for animated bodies and other colliders).
+	std::shared_ptr<const SkinField> skinField;
+	double skinFieldSeconds = 0.0; ///< time of that bake at load (0 when read from the fit's side file)
 };
 
 /// Loads the body as the scene says; the overrides replace scene.body.mesh / scene.body.ellipsoids when not empty.
