@@ -467,8 +467,14 @@ void btEllipsoidClothColliderCore::collideSweptNodes(btSoftBody* softBody, const
 		}
 		// Every ellipsoid moved by itself: the start is carried per candidate (collideSweptNode), not by the body.
 		btScalar zeta;
-		if (collideSweptNode(node, q, substep, zeta))
-			minZeta = btMin(minZeta, zeta);
+		if (!collideSweptNode(node, q, substep, zeta))
+			continue;
+		minZeta = btMin(minZeta, zeta);
+		// Outside every ellipsoid is not outside the body: the union holds the skin, not the whole interior. A void
+		// of the union that closes around a node (an armpit, a thigh meeting the other) is open in every moving
+		// frame, and a node placed ahead of a fast limb can land in one behind it; as after a jump, a node in an
+		// enclosed void leaves it (tests/bullet_ext/test_collider_moving.cpp "[pocket]").
+		leavePocket(node, substep, minZeta);
 	}
 	stats.m_minZeta = minZeta;
 }
