@@ -57,6 +57,41 @@ int clampCell(btScalar f, int dim)
 	return int(btMin(btMax(f, btScalar(0)), btScalar(dim - 1)));
 }
 
+/// A rotational symmetry of the unit cube (a signed permutation with determinant +1): column k of the matrix has
+/// its one non-zero entry m_sign[k] in row m_row[k].
+struct btAxisSymmetry
+{
+	int m_row[3];
+	btScalar m_sign[3];
+};
+
+/// The 24 symmetries, identity first.
+const btAxisSymmetry* axisSymmetries()
+{
+	static btAxisSymmetry all[24];
+	static bool made = false;
+	if (made)
+		return all;
+	const int perms[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {1, 0, 2}, {0, 2, 1}, {2, 1, 0}};
+	int n = 0;
+	for (int p = 0; p < 6; ++p)
+		for (int signs = 0; signs < 8; ++signs)
+		{
+			btAxisSymmetry s;
+			btScalar det = p < 3 ? btScalar(1) : btScalar(-1); // even / odd permutation
+			for (int k = 0; k < 3; ++k)
+			{
+				s.m_row[k] = perms[p][k];
+				s.m_sign[k] = (signs >> k) & 1 ? btScalar(-1) : btScalar(1);
+				det *= s.m_sign[k];
+			}
+			if (det > btScalar(0))
+				all[n++] = s;
+		}
+	made = true;
+	return all;
+}
+
 } // namespace
 
 btEllipsoidSweep::btEllipsoidSweep()
@@ -88,6 +123,8 @@ bool btEllipsoidSweep::prepare(const btEllipsoidWorldCache& current)
 		moved = packed[i] != m_previous[i];
 	if (!moved)
 		return false;
+	for (int j = 0; j < n; ++j)
+		alignPreviousFrame(current[j], j);
 	m_boxes.resize(2 * n);
 	m_always.resize(0);
 	m_growthPerLength = btScalar(0);
@@ -105,6 +142,47 @@ bool btEllipsoidSweep::prepare(const btEllipsoidWorldCache& current)
 	}
 	buildGrid(n);
 	return true;
+}
+
+void btEllipsoidSweep::alignPreviousFrame(const btEllipsoidWorldCache::Entry& now, int j)
+{
+	// The ball is symmetric, so an ellipsoid has many frames: U and U S for every orthogonal S. A driver that builds
+	// each pose from an SVD (skinned_fit.h's transformEllipsoid, the compound's re-orthonormalisation) can hand over
+	// the same ellipsoid with two axes swapped or two signs flipped, and the frames' difference would read as a half
+	// turn: starts carried by it land across the body. Of the previous frame's 24 axis symmetries S, the one closest
+	// to the current frame (largest trace(S^T U0^T U1), i.e. smallest |U0 S - U1|_F) is kept; S = I for any motion
+	// that turns the ellipsoid by less than 45 degrees in a substep.
+	btMatrix3x3& u0 = m_previousUnwhiten[j];
+	const btMatrix3x3 m = u0.transpose() * now.m_unwhiten;
+	const btAxisSymmetry* sym = axisSymmetries();
+	int best = 0;
+	btScalar bestTrace = -SIMD_INFINITY;
+	for (int i = 0; i < 24; ++i)
+	{
+		const btAxisSymmetry& s = sym[i];
+		const btScalar trace =
+			s.m_sign[0] * m[s.m_row[0]][0] + s.m_sign[1] * m[s.m_row[1]][1] + s.m_sign[2] * m[s.m_row[2]][2];
+		if (trace > bestTrace)
+			bestTrace = trace, best = i;
+	}
+	if (best == 0)
+		return;
+	// U0' = U0 S (column k of U0' is sign_k times column row_k of U0); W0' = S^T W0 (row k is sign_k times row
+	// row_k of W0). The packed record keeps W0 by columns: element (r, c) at 4 + 4 c + r.
+	const btAxisSymmetry& s = sym[best];
+	btMatrix3x3 aligned;
+	for (int k = 0; k < 3; ++k)
+		for (int r = 0; r < 3; ++r)
+			aligned[r][k] = s.m_sign[k] * u0[r][s.m_row[k]];
+	u0 = aligned;
+	btScalar* pk = &m_previous[btEllipsoidWorldCache::kPackedStride * j];
+	btScalar w[3][3];
+	for (int r = 0; r < 3; ++r)
+		for (int c = 0; c < 3; ++c)
+			w[r][c] = pk[4 + 4 * c + r];
+	for (int k = 0; k < 3; ++k)
+		for (int c = 0; c < 3; ++c)
+			pk[4 + 4 * c + k] = s.m_sign[k] * w[s.m_row[k]][c];
 }
 
 bool btEllipsoidSweep::sweptBox(const btEllipsoidWorldCache& current, int j, btScalar& k, btScalar& e)

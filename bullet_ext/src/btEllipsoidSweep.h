@@ -76,6 +76,8 @@ private:
 	btAlignedObjectArray<int> m_cellStart;
 	btAlignedObjectArray<int> m_cellItems;
 
+	/// Replaces the previous frame of entry j by its axis symmetry closest to the current frame (same ellipsoid).
+	void alignPreviousFrame(const btEllipsoidWorldCache::Entry& now, int j);
 	/// Swept box of entry j and its contribution to the deviation bound; false for a degenerate interpolation.
 	bool sweptBox(const btEllipsoidWorldCache& current, int j, btScalar& k, btScalar& e);
 	void buildGrid(int count);
