@@ -1,5 +1,5 @@
 // bodyfit-drape: runs a drape scene headless (docs/DESIGN.md sec. 6).
-//   bodyfit-drape SCENE.json [--body MESH] [--ellipsoids FIT.json] [--collider KIND] [--steps N]
+//   bodyfit-drape SCENE.json [--body MESH] [--ellipsoids FIT.json] [--collider KIND] [--steps N] [--surface S]
 //                 [--frames DIR] [--metrics OUT.json] [--png OUT.png] [--show body|ellipsoids]
 // Exit status: 0 success, 2 bad input (one-line reason on stderr), 1 failure while running or writing.
 
@@ -32,13 +32,15 @@ namespace
 
 const char* kUsage =
 	"usage: bodyfit-drape SCENE.json [--body MESH] [--ellipsoids FIT.json] [--collider KIND] [--steps N]\n"
-	"                     [--frames DIR] [--metrics OUT.json] [--png OUT.png] [--show body|ellipsoids]\n"
+	"                     [--surface tight|ellipsoids] [--frames DIR] [--metrics OUT.json] [--png OUT.png] [--show body|ellipsoids]\n"
 	"\n"
 	"Runs a cloth scene (demos/scenes/*.json) headless with Bullet and writes metrics and pictures.\n"
 	"  --body MESH          body mesh instead of the scene's body.mesh\n"
 	"  --ellipsoids FIT     fitted ellipsoid JSON (from bodyfit-fit) instead of the scene's body.ellipsoids/fit\n"
 	"  --collider KIND      ellipsoids | mesh-bvh | convex-hull-compound | ellipsoids-sdf | none\n"
 	"                       (overrides collider.kind)\n"
+	"  --surface S          tight (the skin field inside the union, default) | ellipsoids (the paper's\n"
+	"                       pure ellipsoid response); overrides collider.surface\n"
 	"  --steps N            number of steps (default: the scene's solver.steps)\n"
 	"  --frames DIR         write the cloth as DIR/frame_NNNNN.obj every output.frame_every steps (and\n"
 	"                       an animated body's skinned mesh as DIR/body_NNNNN.obj), DIR/frames.json\n"
@@ -64,7 +66,7 @@ struct BlownUp : std::runtime_error
 
 struct Args
 {
-	std::string scene, body, ellipsoids, collider, frames, metrics, png, show;
+	std::string scene, body, ellipsoids, collider, surface, frames, metrics, png, show;
 	int steps = -1;
 };
 
@@ -90,6 +92,8 @@ Args parseArgs(int argc, char** argv)
 			a.ellipsoids = value();
 		else if (s == "--collider")
 			a.collider = value();
+		else if (s == "--surface")
+			a.surface = value();
 		else if (s == "--frames")
 			a.frames = value();
 		else if (s == "--metrics")
@@ -290,6 +294,10 @@ int main(int argc, char** argv)
 		scene = loadScene(args.scene);
 		if (!args.collider.empty())
 			scene.collider.kind = colliderKindFromString(args.collider);
+		if (!args.surface.empty() && args.surface != "tight" && args.surface != "ellipsoids")
+			throw InvalidInputError("--surface: '" + args.surface + "' is not one of tight, ellipsoids");
+		if (!args.surface.empty())
+			scene.collider.tightSurface = args.surface == "tight";
 		if (!args.show.empty())
 			scene.render.showEllipsoids = args.show == "ellipsoids";
 		for (const std::string* p : {&args.body, &args.ellipsoids})
