@@ -152,6 +152,7 @@ TEST_CASE("bodyfit-drape: bad input exits 2 with one line naming the problem", "
 		{"", "missing SCENE.json"},
 		{"\"" + scene + "\" --frobnicate", "unknown option --frobnicate"},
 		{"\"" + scene + "\" --collider spheres", "collider kind 'spheres'"},
+		{"\"" + scene + "\" --surface skin", "--surface: 'skin' is not one of tight, ellipsoids"},
 		{"\"" + scene + "\" --steps -3", "--steps: '-3'"},
 		{"\"" + scene + "\" --body /no/such.obj", "/no/such.obj"},
 		{"/no/such/scene.json", "/no/such/scene.json: cannot open scene file"},
