@@ -718,8 +718,16 @@ bool btEllipsoidClothColliderCore::respondVelocity(btSoftBody::Node& node, const
 	const bool stopped = relative.length2() > btScalar(0) && vr.length2() == btScalar(0);
 	if (remaining > btScalar(0) && !stopped)
 		slideAlong(node, vr * (remaining * substep.m_dt), substep);
-	if (substep.m_dt > btScalar(0))
-		vr = btCapBySurfaceMotion(vr, normal, (node.m_x - start) / substep.m_dt);
+	setContactVelocity(node, vr, normal, start, bodyVelocity, before, surface, substep.m_dt);
+	return stopped;
+}
+
+void btEllipsoidClothColliderCore::setContactVelocity(btSoftBody::Node& node, btVector3 vr, const btVector3& normal,
+													  const btVector3& start, const btVector3& bodyVelocity,
+													  const btVector3& before, const btVector3& surface, btScalar dt)
+{
+	if (dt > btScalar(0))
+		vr = btCapBySurfaceMotion(vr, normal, (node.m_x - start) / dt);
 	node.m_v = bodyVelocity + vr;
 	if (m_dynamicBody)
 	{
@@ -727,7 +735,6 @@ bool btEllipsoidClothColliderCore::respondVelocity(btSoftBody::Node& node, const
 		m_dynamicBody->applyImpulse((before - node.m_v) / node.m_im, surface - m_dynamicBody->getCenterOfMassPosition());
 		m_dynamicBody->activate();
 	}
-	return stopped;
 }
 
 void btEllipsoidClothColliderCore::slideAlong(btSoftBody::Node& node, const btVector3& displacement,

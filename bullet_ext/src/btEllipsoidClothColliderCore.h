@@ -162,6 +162,12 @@ private:
 	bool respondVelocity(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface,
 						 const btVector3& start, const btVector3& center, int ellipsoid, const Substep& substep,
 						 btScalar remaining);
+	/// The end of every contact response: the relative velocity vr capped by the node's real motion along the
+	/// normal, the node's velocity set to bodyVelocity + vr, and the reaction on a dynamic body (before: the node's
+	/// velocity before the contact).
+	void setContactVelocity(btSoftBody::Node& node, btVector3 vr, const btVector3& normal, const btVector3& start,
+							const btVector3& bodyVelocity, const btVector3& before, const btVector3& surface,
+							btScalar dt);
 	/// Moves the node by `displacement` if that path enters no ellipsoid.
 	void slideAlong(btSoftBody::Node& node, const btVector3& displacement, const Substep& substep);
 

@@ -295,13 +295,6 @@ bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const b
 		const btVector3 displacement = geometry.toBody().getBasis() * (vr * (remaining * substep.m_dt));
 		node.m_x = geometry.toWorld() * geometry.slide(geometry.toBody() * node.m_x, displacement, value);
 	}
-	if (substep.m_dt > btScalar(0))
-		vr = btCapBySurfaceMotion(vr, normal, (node.m_x - start) / substep.m_dt);
-	node.m_v = bodyVelocity + vr;
-	if (m_dynamicBody)
-	{
-		m_dynamicBody->applyImpulse((before - node.m_v) / node.m_im, surface - m_dynamicBody->getCenterOfMassPosition());
-		m_dynamicBody->activate();
-	}
+	setContactVelocity(node, vr, normal, start, bodyVelocity, before, surface, substep.m_dt);
 	return stopped;
 }
