@@ -279,6 +279,8 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 	const bool continuing = m_havePose;
 	advanceBodyPose(continuing);
 	updateWorldCache(continuing);
+	if (m_sweeping || m_teleported)
+		m_pushOut.prepareEscapeRays(m_current); // the substep runs leavePocket
 	btRigidBody* rigid = btRigidBody::upcast(m_body);
 	m_dynamicBody = m_config.m_applyReactionToBody && rigid && !rigid->isStaticOrKinematicObject() &&
 							rigid->getInvMass() > btScalar(0)
@@ -495,16 +497,8 @@ BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoft
 	btEarliestEntry(m_current.getPackedRecords(), substep.m_candidates, nc, btPathEnds(q, x), substep.m_tvals, entry);
 	if (entry.m_startInside)
 	{
-		// The body moved into the node (or it started inside). If the solve already brought it out, keep it.
-		if (entry.m_minZetaEnd >= btScalar(1))
-		{
-			zeta = entry.m_minZetaEnd;
-			return true;
-		}
-		// 4. Union push-out.
-		++m_lastStats.m_nodesPushedOut;
-		bool moved;
-		zeta = pushNodeOut(node, x, q, substep, moved);
+		// The body moved into the node (or it started inside).
+		zeta = respondStartInside(node, entry, q, substep);
 		return true;
 	}
 	if (entry.m_ellipsoid < 0)
@@ -537,17 +531,10 @@ bool btEllipsoidClothColliderCore::collideSweptNode(btSoftBody::Node& node, cons
 	btEarliestEntryWith(whiten, substep.m_candidates, nc, substep.m_tvals, entry);
 	if (entry.m_startInside)
 	{
-		// q was inside an ellipsoid's previous pose (a bad start): as the static path, keep x if the solve brought
-		// it out, else push it out of the current union.
-		if (entry.m_minZetaEnd >= btScalar(1))
-		{
-			zeta = entry.m_minZetaEnd;
-			return true;
-		}
-		++m_lastStats.m_nodesPushedOut;
-		bool moved;
-		zeta = pushNodeOut(node, x, m_sweep.carry(m_current, firstContaining(q, substep.m_candidates, nc), q), substep,
-						   moved);
+		// q was inside an ellipsoid's previous pose (a bad start): as the static path, from q carried by that
+		// ellipsoid's motion.
+		zeta = respondStartInside(node, entry, m_sweep.carry(m_current, firstContaining(q, substep.m_candidates, nc), q),
+								  substep);
 		return true;
 	}
 	zeta = entry.m_minZetaEnd; // the candidates hold every current ellipsoid near x (swept box >= current box)
@@ -563,6 +550,18 @@ bool btEllipsoidClothColliderCore::collideSweptNode(btSoftBody::Node& node, cons
 	else
 		zeta = respondToSweep(node, entry, q, substep);
 	return true;
+}
+
+btScalar btEllipsoidClothColliderCore::respondStartInside(btSoftBody::Node& node, const btPathEntry& entry,
+														  const btVector3& start, const Substep& substep)
+{
+	// If the solve already brought the node out, keep it; else 4. the union push-out.
+	if (entry.m_minZetaEnd >= btScalar(1))
+		return entry.m_minZetaEnd;
+	++m_lastStats.m_nodesPushedOut;
+	const btVector3 x = node.m_x;
+	bool moved;
+	return pushNodeOut(node, x, start, substep, moved);
 }
 
 int btEllipsoidClothColliderCore::firstContaining(const btVector3& q, const int* cand, int nc) const

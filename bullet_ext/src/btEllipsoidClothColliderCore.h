@@ -133,6 +133,10 @@ private:
 	btVector3 bodyVelocityAt(const btVector3& worldPoint, int ellipsoid, btScalar dt) const;
 	/// The same for the per-ellipsoid motion of a sweeping substep.
 	btVector3 sweptVelocityAt(const btVector3& worldPoint, int ellipsoid, btScalar dt) const;
+	/// A path that starts inside an ellipsoid: x kept if the solve brought it out (zeta >= 1 there), else the union
+	/// push-out from x (`start` for the velocity rule). \return the node's zeta.
+	btScalar respondStartInside(btSoftBody::Node& node, const btPathEntry& entry, const btVector3& start,
+								const Substep& substep);
 	/// The first of the candidates whose previous pose contains q (a start inside during a sweep).
 	int firstContaining(const btVector3& q, const int* cand, int nc) const;
 	/// The node loop of a substep whose ellipsoids moved by themselves (m_sweeping).

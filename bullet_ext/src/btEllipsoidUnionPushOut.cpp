@@ -126,8 +126,10 @@ void btEllipsoidUnionPushOut::leaveEnclosedPocket(const btEllipsoidWorldCache& c
 	out.m_fallback = false;
 	out.m_ellipsoid = -1;
 	out.m_point = from;
-	out.m_zeta = minZetaAll(cache, from, 0);
-	if (escapesUnion(from, latticeDirection(0)))
+	out.m_zeta = SIMD_INFINITY; // (not computed when nothing moves: the caller only reads it after a move)
+	// The axis rays on the bins first (cheap); the full test when all six are blocked (or the bins are not ready).
+	const bool binsReady = m_escapeRaysCache == &cache && m_escapeRaysCount == cache.size();
+	if ((binsReady && someAxisRayEscapes(from)) || escapesUnion(from, latticeDirection(0)))
 		return;
 	btVector3 dirs[26];
 	for (int d = 0; d < 26; ++d)
@@ -412,5 +414,118 @@ bool btEllipsoidUnionPushOut::escapesUnion(const btVector3& p, const btVector3& 
 		if (!blocked)
 			return true;
 	}
+	return false;
+}
+
+void btEllipsoidUnionPushOut::prepareEscapeRays(const btEllipsoidWorldCache& cache)
+{
+	m_cache = &cache;
+	for (int axis = 0; axis < 3; ++axis)
+		buildAxisBins(axis);
+	m_escapeRaysCache = &cache;
+	m_escapeRaysCount = cache.size();
+}
+
+void btEllipsoidUnionPushOut::buildAxisBins(int axis)
+{
+	// Square bins, kEscapeBinsLongestSide along the longer of the two other sides of the union box; every ellipsoid
+	// is listed in each bin its world box meets (CSR: count, prefix sums, fill).
+	const btEllipsoidWorldCache& cache = *m_cache;
+	AxisBins& bins = m_axisBins[axis];
+	const btVector3 lo = cache.getAabbMin(), hi = cache.getAabbMax();
+	bins.m_axes[0] = (axis + 1) % 3;
+	bins.m_axes[1] = (axis + 2) % 3;
+	const btScalar extent[2] = {hi[bins.m_axes[0]] - lo[bins.m_axes[0]], hi[bins.m_axes[1]] - lo[bins.m_axes[1]]};
+	const btScalar longest = btMax(extent[0], extent[1]);
+	const btScalar size = longest > btScalar(0) ? longest / btScalar(kEscapeBinsLongestSide) : btScalar(1);
+	bins.m_invBin = btScalar(1) / size;
+	for (int i = 0; i < 2; ++i)
+	{
+		bins.m_lo[i] = lo[bins.m_axes[i]];
+		bins.m_dims[i] = btMax(1, btMin(int(kEscapeBinsLongestSide), int(extent[i] * bins.m_invBin) + 1));
+	}
+	const int nbins = bins.m_dims[0] * bins.m_dims[1];
+	bins.m_start.resize(nbins + 1);
+	for (int b = 0; b <= nbins; ++b)
+		bins.m_start[b] = 0;
+	for (int pass = 0; pass < 2; ++pass)
+	{
+		for (int k = 0; k < cache.size(); ++k)
+		{
+			const btEllipsoidWorldCache::Entry& e = cache[k];
+			const int i0 = bins.binCoord(e.m_aabbMin[bins.m_axes[0]], 0), i1 = bins.binCoord(e.m_aabbMax[bins.m_axes[0]], 0);
+			const int j0 = bins.binCoord(e.m_aabbMin[bins.m_axes[1]], 1), j1 = bins.binCoord(e.m_aabbMax[bins.m_axes[1]], 1);
+			for (int j = j0; j <= j1; ++j)
+				for (int i = i0; i <= i1; ++i)
+				{
+					const int b = j * bins.m_dims[0] + i;
+					if (pass == 0)
+						++bins.m_start[b + 1];
+					else
+						bins.m_items[m_binFill[b]++] = k;
+				}
+		}
+		if (pass == 0)
+		{
+			for (int b = 0; b < nbins; ++b)
+				bins.m_start[b + 1] += bins.m_start[b];
+			bins.m_items.resize(bins.m_start[nbins]);
+			m_binFill.resize(nbins);
+			for (int b = 0; b < nbins; ++b)
+				m_binFill[b] = bins.m_start[b];
+		}
+	}
+}
+
+bool btEllipsoidUnionPushOut::axisRaysEscape(int axis, const btVector3& p) const
+{
+	// The two rays p + s e_k and p - s e_k (s > 0) at once. An ellipsoid lies in its world box, so only one whose box
+	// holds p's two other coordinates can meet the line, and every such ellipsoid is listed in p's bin (the box meets
+	// the bin). For each listed one the line's quadratic (as escapesUnion sets it up; W e_k is column k of W): the +
+	// ray is blocked when the far root lies ahead, the - ray when the near root lies behind. A ray blocked by no
+	// listed ellipsoid is blocked by none: it leaves the union, so p is connected to the outside.
+	const btEllipsoidWorldCache& cache = *m_cache;
+	const AxisBins& bins = m_axisBins[axis];
+	const int b = bins.binCoord(p[bins.m_axes[1]], 1) * bins.m_dims[0] + bins.binCoord(p[bins.m_axes[0]], 0);
+	bool plusBlocked = false, minusBlocked = false;
+	for (int i = bins.m_start[b]; i < bins.m_start[b + 1]; ++i)
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[bins.m_items[i]];
+		// (Cheap skips, not needed for soundness: the box misses the line, or lies only on an already blocked side.)
+		const int a0 = bins.m_axes[0], a1 = bins.m_axes[1];
+		if (p[a0] < e.m_aabbMin[a0] || p[a0] > e.m_aabbMax[a0] || p[a1] < e.m_aabbMin[a1] || p[a1] > e.m_aabbMax[a1])
+			continue;
+		if ((plusBlocked || e.m_aabbMax[axis] < p[axis]) && (minusBlocked || e.m_aabbMin[axis] > p[axis]))
+			continue;
+		const btVector3 d(e.m_whiten[0][axis], e.m_whiten[1][axis], e.m_whiten[2][axis]);
+		const btUnitBallQuadratic quadratic = btUnitBallQuadratic::ofLine(e.m_whiten * (p - e.m_center), d);
+		const btScalar disc = quadratic.discriminant();
+		if (!(quadratic.m_a > btScalar(0)) || disc < btScalar(0))
+			continue;
+		plusBlocked = plusBlocked || quadratic.exitAhead(disc);
+		minusBlocked = minusBlocked || btSqrt(disc) + quadratic.m_b > btScalar(0); // exitAhead of the reversed line
+		if (plusBlocked && minusBlocked)
+			return false;
+	}
+	return true;
+}
+
+bool btEllipsoidUnionPushOut::someAxisRayEscapes(const btVector3& p) const
+{
+	// The cheap part of the escape test: the six axis rays on the bins, the axis whose nearer face of the union box
+	// is closest to p first (the way out of a point on the body's surface is mostly towards its nearest side).
+	// Sound: a ray that leaves the union proves p is not in an enclosed void (see axisRaysEscape); when all six are
+	// blocked the full test of escapesUnion decides.
+	const btVector3 lo = m_cache->getAabbMin(), hi = m_cache->getAabbMax();
+	btScalar gap[3];
+	for (int k = 0; k < 3; ++k)
+		gap[k] = btMin(p[k] - lo[k], hi[k] - p[k]);
+	int order[3] = {0, 1, 2};
+	for (int i = 1; i < 3; ++i)
+		for (int j = i; j > 0 && gap[order[j]] < gap[order[j - 1]]; --j)
+			btSwap(order[j], order[j - 1]);
+	for (int i = 0; i < 3; ++i)
+		if (axisRaysEscape(order[i], p))
+			return true;
 	return false;
 }

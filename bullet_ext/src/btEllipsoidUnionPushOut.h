@@ -30,13 +30,20 @@ struct btPushOutResult
 class btEllipsoidUnionPushOut
 {
 public:
+	btEllipsoidUnionPushOut() : m_cache(0), m_escapeRaysCache(0), m_escapeRaysCount(0) {}
+
 	/// Pushes the point `from` out of the union of the cache's ellipsoids, `skin` (>= 0) beyond its surface.
 	void pushOut(const btEllipsoidWorldCache& cache, const btVector3& from, btScalar skin, btPushOutResult& out);
+
+	/// Builds the escape test's broad phase (the axis-ray bins) for the cache's current state; leaveEnclosedPocket
+	/// needs it after every update of the cache that recomputed it (once per substep that runs the escape test).
+	void prepareEscapeRays(const btEllipsoidWorldCache& cache);
 
 	/// A point outside every ellipsoid may still sit in a pocket the union encloses (a gap under the skin of a fitted
 	/// body, where the cloth can land when the body is teleported). If no ray of the escape test leaves the union
 	/// from `from`, the point leaves along the shortest of the 26 lattice directions past the last chord (m_moved and
-	/// m_enclosed set); otherwise nothing moves (m_moved false).
+	/// m_enclosed set, m_zeta at the exit); otherwise nothing moves (m_moved false; m_zeta is not computed then).
+	/// Call prepareEscapeRays for the cache's current state first.
 	void leaveEnclosedPocket(const btEllipsoidWorldCache& cache, const btVector3& from, btScalar skin,
 							 btPushOutResult& out);
 
@@ -52,7 +59,40 @@ private:
 		kMaxDirections = 56
 	};
 
+	/// Bins along the longer side of an axis-ray grid (see AxisBins).
+	enum
+	{
+		kEscapeBinsLongestSide = 16
+	};
+
+	/// The escape test's broad phase for rays along world axis k (prepareEscapeRays): square bins over the union
+	/// box's two other coordinates (m_axes), each listing every ellipsoid whose world box meets the bin (closed), so
+	/// the ellipsoids a ray p +- s e_k can meet are all in the list of p's bin.
+	struct AxisBins
+	{
+		int m_axes[2];
+		int m_dims[2];
+		btScalar m_lo[2];
+		btScalar m_invBin;
+		btAlignedObjectArray<int> m_start; ///< CSR: bin b lists m_items[m_start[b]] .. m_items[m_start[b + 1] - 1]
+		btAlignedObjectArray<int> m_items;
+		/// Bin coordinate along m_axes[i], clamped (monotone in v, so a box holding v lists the bin holding v).
+		int binCoord(btScalar v, int i) const
+		{
+			const btScalar f = (v - m_lo[i]) * m_invBin;
+			if (!(f > btScalar(0)))
+				return 0;
+			if (f >= btScalar(m_dims[i] - 1))
+				return m_dims[i] - 1;
+			return int(f);
+		}
+	};
+
 	const btEllipsoidWorldCache* m_cache;
+	AxisBins m_axisBins[3];
+	const btEllipsoidWorldCache* m_escapeRaysCache; ///< the cache the bins were built for (0: none)
+	int m_escapeRaysCount;                          ///< its size then
+	btAlignedObjectArray<int> m_binFill;            ///< scratch of prepareEscapeRays
 	btAlignedObjectArray<btScalar> m_intervals; ///< chord of ellipsoid m_intervalOwner[i] along the current ray:
 												///< [2i] start, [2i + 1] end (widened by the skin), sorted by start
 	btAlignedObjectArray<int> m_intervalOwner;
@@ -72,6 +112,9 @@ private:
 	btScalar realiseExit(const btVector3& origin, const btVector3& dir, btScalar skin, btVector3& out,
 						 int* exitEllipsoid, bool lastExit);
 	bool escapesUnion(const btVector3& p, const btVector3& preferred) const;
+	void buildAxisBins(int axis);
+	bool axisRaysEscape(int axis, const btVector3& p) const;
+	bool someAxisRayEscapes(const btVector3& p) const;
 };
 
 #endif // BT_ELLIPSOID_UNION_PUSH_OUT_H

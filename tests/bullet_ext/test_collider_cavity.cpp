@@ -3,8 +3,13 @@
 // (fitted bodies have such pockets between neighbouring ellipsoids under the skin; a node pushed there is outside
 // every ellipsoid but inside the body).
 #include "bullet_ext/cloth_test_scene.h"
+#include "src/btEllipsoidUnionPushOut.h" // the escape test, asked directly
 
 #include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
 
 using namespace bodyfit_test;
 
@@ -66,4 +71,109 @@ TEST_CASE("push-out: a node inside the wall of a sealed box leaves to the outsid
 		}
 	}
 	CHECK(scene.report.minZeta >= 1.0 - 1e-6);
+}
+
+namespace
+{
+
+/// A ray from p along d (unit) misses every ellipsoid by a clear margin (double): for each, the whitened line's
+/// discriminant is below -1e-9 or both roots lie behind p by more than 1e-9 (far above the float rounding of the
+/// escape test's quadratic at unit scale, 1e-7, squared into the discriminant).
+bool rayClearlyEscapes(const std::vector<RefEllipsoid>& ells, const Eigen::Vector3d& p, const Eigen::Vector3d& d)
+{
+	for (const RefEllipsoid& e : ells)
+	{
+		const Eigen::Vector3d u0 = (e.rotation.transpose() * (p - e.center)).cwiseQuotient(e.radii);
+		const Eigen::Vector3d w = (e.rotation.transpose() * d).cwiseQuotient(e.radii);
+		const double a = w.squaredNorm(), b = u0.dot(w), c = u0.squaredNorm() - 1.0;
+		const double disc = b * b - a * c;
+		if (disc < -1e-9)
+			continue;
+		if ((-b + std::sqrt(std::max(disc, 0.0))) / a < -1e-9)
+			continue;
+		return false;
+	}
+	return true;
+}
+
+} // namespace
+
+TEST_CASE("escape test: points in a sealed box's cavity leave it, points with a free ray stay, in a crowd of "
+		  "ellipsoids", "[bullet_ext][collider][pocket]")
+{
+	// The sealed box plus 40 balls (radius 0.1-0.3) around it, centred at |c|_inf >= 1.5 (so none reaches into the
+	// cavity, |local|_inf < 0.89 off the slabs): the escape test's axis-ray bins then list several ellipsoids per
+	// bin, and a bin that missed a slab would let an axis ray of a cavity point escape. Two body poses: the identity
+	// and a turned, shifted one (the axis rays are then oblique to the slabs).
+	std::unique_ptr<btEllipsoidCompoundShape> shape = sealedBox();
+	std::mt19937 rng(20261202);
+	std::uniform_real_distribution<double> unit(-1.0, 1.0);
+	for (int added = 0; added < 40;)
+	{
+		const btVector3 c(btScalar(2.5 * unit(rng)), btScalar(2.5 * unit(rng)), btScalar(2.5 * unit(rng)));
+		if (c.absolute()[c.absolute().maxAxis()] < btScalar(1.5))
+			continue;
+		const btScalar r = btScalar(0.2 + 0.1 * unit(rng));
+		shape->addEllipsoid(c, btMatrix3x3::getIdentity(), btVector3(r, r, r));
+		++added;
+	}
+	const btScalar skin(0.002);
+	const btTransform poses[] = {btTransform::getIdentity(),
+								 btTransform(btQuaternion(btVector3(1, 1, 0).normalized(), btScalar(0.5)),
+											 btVector3(btScalar(0.3), btScalar(1.0), btScalar(-0.2)))};
+	for (const btTransform& pose : poses)
+	{
+		btEllipsoidWorldCache cache;
+		cache.update(shape.get(), pose);
+		btEllipsoidUnionPushOut escape;
+		escape.prepareEscapeRays(cache);
+		const std::vector<RefEllipsoid> ells = worldEllipsoids(*shape, pose);
+		auto minZeta = [&](const btVector3& p) {
+			double z = 1e30;
+			for (const RefEllipsoid& e : ells)
+				z = std::min(z, e.zeta(toE(p)));
+			return z;
+		};
+		int checkedOutside = 0;
+		for (int i = 0; i < 400; ++i)
+		{
+			const bool cavity = i % 2 == 0;
+			const double scale = cavity ? 0.8 : 2.6;
+			const btVector3 local(btScalar(scale * unit(rng)), btScalar(scale * unit(rng)), btScalar(scale * unit(rng)));
+			if (!cavity && local.absolute()[local.absolute().maxAxis()] < btScalar(1.3))
+				continue;
+			const btVector3 p = pose * local;
+			if (minZeta(p) < 1.0)
+				continue; // inside a ball or a slab: not a point the escape test is asked about
+			btPushOutResult out;
+			escape.leaveEnclosedPocket(cache, p, skin, out);
+			INFO("pose origin y " << pose.getOrigin().y() << ", local point " << local.x() << " " << local.y() << " "
+								  << local.z());
+			if (cavity)
+			{
+				// Enclosed: it must leave, outside every ellipsoid (1e-6: float rounding of zeta at unit scale) and
+				// outside the box (the cube of half size 1 holds the cavity and the slabs' inner halves).
+				REQUIRE(out.m_moved);
+				CHECK(out.m_enclosed);
+				CHECK(minZeta(out.m_point) >= 1.0 - 1e-6);
+				const btVector3 exitLocal = pose.invXform(out.m_point);
+				CHECK_FALSE(insideCube(exitLocal, 1.0));
+				continue;
+			}
+			// Outside the box: where one of the 26 lattice directions clearly leaves the union, the point is not in
+			// an enclosed void and must not move.
+			bool free = false;
+			for (int dx = -1; dx <= 1 && !free; ++dx)
+				for (int dy = -1; dy <= 1 && !free; ++dy)
+					for (int dz = -1; dz <= 1 && !free; ++dz)
+						if (dx || dy || dz)
+							free = rayClearlyEscapes(ells, toE(p), Eigen::Vector3d(dx, dy, dz).normalized());
+			if (!free)
+				continue;
+			++checkedOutside;
+			CHECK_FALSE(out.m_moved);
+		}
+		// Most outside points have a free lattice ray (the balls are sparse): the check above is not vacuous.
+		CHECK(checkedOutside >= 100);
+	}
 }

@@ -1,11 +1,8 @@
 // Teleport (issue 12 item 3): after resetBodyPose() a jump of a fitted body through draped cloth must not leave
 // nodes inside the body mesh. Before, nodes that the jump put outside every ellipsoid but inside the body (pockets of
 // the union under the skin) stayed there: 16 right after a 0.3 m jump, 17 sixty steps later.
-#include "bodyfit/bridge/btBodyFitToBullet.h"
-#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/fitting/inside_test.h"
-#include "bodyfit/fitting/mesh_io.h"
-#include "support/paths.h"
+#include "support/fitted_body.h"
 
 #include "BulletSoftBody/btSoftBodyHelpers.h"
 
@@ -34,21 +31,17 @@ int nodesInsideMesh(const btSoftBody& cloth, const btTransform& pose, const body
 TEST_CASE("teleport: a 0.3 m jump of a fitted body after resetBodyPose leaves no node inside the body",
 		  "[bullet_ext][collider][teleport]")
 {
-	const bodyfit::LoadedMesh mesh = bodyfit::loadTriMesh(bodyfit_test::assetPath("female_young.obj"));
+	const bodyfit_test::FittedBody fitted("female_young");
+	const bodyfit::LoadedMesh& mesh = fitted.mesh;
 	const bodyfit::MeshInsideTest inside(mesh.full);
-	std::unique_ptr<btEllipsoidCompoundShape> compound =
-		bodyfit::loadEllipsoidCompound(bodyfit_test::assetPath("fits/female_young.json"));
 	const double top = mesh.full.V.col(1).maxCoeff();
 	const btVector3 jumps[] = {btVector3(0, 0.3, 0), btVector3(0.3, 0, 0), btVector3(-0.3, 0, 0)};
 	for (const btVector3& jump : jumps)
 	{
 		INFO("jump (" << jump.x() << ", " << jump.y() << ", " << jump.z() << ")");
 		btEllipsoidClothWorld world;
-		world.getWorld()->setGravity(btVector3(0, btScalar(-9.81), 0));
-		world.getWorldInfo().m_gravity.setValue(0, btScalar(-9.81), 0);
 		btCollisionObject body;
-		body.setCollisionShape(compound.get());
-		world.getWorld()->addCollisionObject(&body);
+		bodyfit_test::addBodyWithGravity(world, body, fitted.compound.get());
 		// A 1.2 m, 60 x 60 patch draped over the head and shoulders for 1.5 s.
 		const btScalar s = btScalar(0.6), y = btScalar(top + 0.03);
 		btSoftBody* cloth = btSoftBodyHelpers::CreatePatch(world.getWorldInfo(), btVector3(-s, y, -s), btVector3(s, y, -s),

@@ -5,10 +5,7 @@
 // speed from positions and the largest |m_v| above a node's actual speed per 0.5 s, the speeds of the nodes on the
 // body and of those hanging free, and checks the goals the collider owns (see the notes above the test cases).
 //   build/tests/tests_bullet_ext "[.settle]"
-#include "bodyfit/bridge/btBodyFitToBullet.h"
-#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
-#include "bodyfit/fitting/mesh_io.h"
-#include "support/paths.h"
+#include "support/fitted_body.h"
 #include "support/settle_meter.h"
 
 #include "BulletSoftBody/btSoftBodyHelpers.h"
@@ -31,15 +28,11 @@ struct SettleResult
 
 SettleResult runPatch(bool pinCorners, double seconds)
 {
-	const bodyfit::LoadedMesh mesh = bodyfit::loadTriMesh(bodyfit_test::assetPath("female_young.obj"));
-	std::unique_ptr<btEllipsoidCompoundShape> compound =
-		bodyfit::loadEllipsoidCompound(bodyfit_test::assetPath("fits/female_young.json"));
+	const bodyfit_test::FittedBody fitted("female_young");
+	const bodyfit::LoadedMesh& mesh = fitted.mesh;
 	btEllipsoidClothWorld world;
-	world.getWorld()->setGravity(btVector3(0, btScalar(-9.81), 0));
-	world.getWorldInfo().m_gravity.setValue(0, btScalar(-9.81), 0);
 	btCollisionObject body;
-	body.setCollisionShape(compound.get());
-	world.getWorld()->addCollisionObject(&body);
+	bodyfit_test::addBodyWithGravity(world, body, fitted.compound.get());
 
 	// Over the head: the top 10% of the vertices give x, z; 3 cm above the top.
 	const double top = mesh.full.V.col(1).maxCoeff();
@@ -100,7 +93,7 @@ SettleResult runPatch(bool pinCorners, double seconds)
 				const btSoftBody::Node& nd = cloth->m_nodes[i];
 				const double speed = double(nd.m_v.length());
 				meanV += nd.m_v / btScalar(cloth->m_nodes.size());
-				if (compound->minZeta(nd.m_x) < btScalar(1.1))
+				if (fitted.compound->minZeta(nd.m_x) < btScalar(1.1))
 					onBody += speed, ++nOn;
 				else
 					free += speed, ++nFree;
