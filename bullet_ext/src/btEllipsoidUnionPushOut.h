@@ -76,15 +76,10 @@ private:
 		btScalar m_invBin;
 		btAlignedObjectArray<int> m_start; ///< CSR: bin b lists m_items[m_start[b]] .. m_items[m_start[b + 1] - 1]
 		btAlignedObjectArray<int> m_items;
-		/// Bin coordinate along m_axes[i], clamped (monotone in v, so a box holding v lists the bin holding v).
+		/// Bin coordinate along m_axes[i], clamped (monotone in v, so a box holding v lists the bin holding v; NaN: 0).
 		int binCoord(btScalar v, int i) const
 		{
-			const btScalar f = (v - m_lo[i]) * m_invBin;
-			if (!(f > btScalar(0)))
-				return 0;
-			if (f >= btScalar(m_dims[i] - 1))
-				return m_dims[i] - 1;
-			return int(f);
+			return int(btMin(btMax((v - m_lo[i]) * m_invBin, btScalar(0)), btScalar(m_dims[i] - 1)));
 		}
 	};
 
