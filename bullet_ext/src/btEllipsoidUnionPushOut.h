@@ -2,7 +2,8 @@
 bodyfit: Bullet extension for ellipsoid body colliders. Private to bodyfit::bullet_ext (not installed).
 The union push-out of the cloth collider: a node that starts a substep inside the union of the ellipsoids (the body
 moved into it, or a bad start) is moved to the surface of the union along the shortest candidate direction whose
-exit is connected to the outside. See btEllipsoidUnionPushOut.cpp.
+exit is connected to the outside; and the escape test, which moves a point outside every ellipsoid out of a pocket
+the union encloses. See btEllipsoidUnionPushOut.cpp.
 */
 
 #ifndef BT_ELLIPSOID_UNION_PUSH_OUT_H

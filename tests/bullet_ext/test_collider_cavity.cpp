@@ -1,7 +1,8 @@
 // Push-out never lands in a cavity of the union: a node that starts inside an ellipsoid leaves the union at the
 // nearest exit that is connected to the outside, not at a nearer one inside a pocket the ellipsoids enclose
 // (fitted bodies have such pockets between neighbouring ellipsoids under the skin; a node pushed there is outside
-// every ellipsoid but inside the body).
+// every ellipsoid but inside the body). And the escape test that finds such pockets (leaveEnclosedPocket, whose axis
+// rays run on bins) never lets a point in one go.
 #include "bullet_ext/cloth_test_scene.h"
 #include "src/btEllipsoidUnionPushOut.h" // the escape test, asked directly
 
