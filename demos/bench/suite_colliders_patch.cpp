@@ -5,9 +5,8 @@
 //   (b) Bullet's default soft-body path (SDF_RS) against a btBvhTriangleMeshShape of the body mesh;
 //   (c) Bullet's default path against the same ellipsoid compound (sparse SDF on each btEllipsoidShape child);
 //   (t) btEllipsoidClothCollider in TIGHT_SKIN mode: (a)'s compound with a skin distance field attached (issue 14;
-//       bullet_ext/README.md, "Tight skin surface"). The field is a BRUTE-FORCE bake made here from the body mesh
-//       (demos/bench/skin_field_bake.h: the exact signed mesh distance at every lattice point of the band), not the
-//       project's bake. (a) is the same collider in ELLIPSOIDS mode (no field). With both, (a) and (t) are stepped
+//       bullet_ext/README.md, "Tight skin surface"). The field is the project's bake (bodyfit::bakeSkinField, default
+//       options, converted by the bridge). (a) is the same collider in ELLIPSOIDS mode (no field). With both, (a) and (t) are stepped
 //       in turn in one loop, so their cost ratio is measured under the same machine load.
 // Per step: wall time of stepSimulation, collision time (soft-rigid collision detection inside
 // performDiscreteCollisionDetection + the collider's own time), and the number of nodes inside the real body mesh
@@ -24,18 +23,20 @@
 //   bodyfit-bench colliders_patch --cases a --moving 2 --repeats 5
 // (the moving row's inside counts are "-": the mesh is at rest; its min zeta is the collider's own check.)
 #include "bench/bench_common.h"
-#include "bench/skin_field_bake.h"
 
 #include "bodyfit/fitting/body_fitter.h"
 #include "bodyfit/fitting/ellipsoid_io.h"
 #include "bodyfit/fitting/mesh_io.h"
 #include "bodyfit/fitting/fit_pipeline.h"
 #include "bodyfit/fitting/segmentation.h"
+#include "bodyfit/fitting/skin_field.h"
 #include "bodyfit/fitting/statistics.h"
 
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
 #include "bodyfit/bullet_ext/btEllipsoidShape.h"
+#include "bodyfit/bullet_ext/btSkinDistanceField.h"
+#include "bodyfit/bridge/btBodyFitToBullet.h"
 #include "bodyfit/drape/garment.h"
 #include "bodyfit/drape/simulation.h"
 
@@ -65,7 +66,7 @@ struct Settings
 	double voxel = 0.02;     // sparse-SDF voxel for the Bullet paths
 	double meshMargin = 0.0; // btBvhTriangleMeshShape margin (also the margin of Bullet's extruded prisms)
 	double kKHR = 1.0;       // Bullet's contact hardness for static bodies (default 0.1 lets nodes sink)
-	std::string cases = "abc"; // and t (tight mode), not in the default set (its bake takes a while)
+	std::string cases = "abc"; // and t (tight mode, on a field baked here), not in the default set
 	double movingMm = 0.0;   // > 0: case (a) also with every ellipsoid moved every step by up to this (--moving)
 	int repeats = 1;         // runs per timed case (the median of their per-step medians is reported)
 };
@@ -96,7 +97,7 @@ struct Result
 const char* caseName(ColliderKind kind, bool tight)
 {
 	if (tight)
-		return "(t) btEllipsoidClothCollider, TIGHT_SKIN (brute-force field)";
+		return "(t) btEllipsoidClothCollider, TIGHT_SKIN (baked field)";
 	switch (kind)
 	{
 	case ColliderKind::Ellipsoids:
@@ -386,7 +387,7 @@ std::string gapCell(const bodyfit::metrics::GapSummary& gap, double metres)
 BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 								 "issue 4: 100x100 patch dropped on the body, 2 s at 60 Hz: ellipsoid collider vs Bullet "
 								 "SDF_RS on the BVH mesh and on the same compound (--quick: 50x50, 1 s)",
-								 {"--cases", "LETTERS", "subset of abct to run (default abc; t = (a) in TIGHT_SKIN mode on a brute-force skin field)"},
+								 {"--cases", "LETTERS", "subset of abct to run (default abc; t = (a) in TIGHT_SKIN mode on the baked skin field)"},
 								 {"--steps", "N", "steps of 1/60 s (default 120, --quick 60)"},
 								 {"--resolution", "N", "patch nodes per side (default 100, --quick 50)"},
 								 {"--voxel", "M", "sparse-SDF voxel of the Bullet paths, metres (default 0.02)"},
@@ -431,23 +432,27 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 	body.meshPath = meshPath;
 	body.ellipsoidSource = source;
 	std::vector<Result> results;
-	bodyfit_bench::BruteForceBake bake;
+	std::unique_ptr<btSkinDistanceField> skinField;
 	if (cases.find('t') != std::string::npos)
 	{
-		std::cerr << "colliders_patch: brute-force skin field bake (h 5 mm, clamp 12 mm)\n";
-		bake = bodyfit_bench::bruteForceSkinField(mesh.full, ellipsoids, s.skin);
-		std::cout << "(t) field: BRUTE-FORCE bake in the bench (exact signed mesh distance at the lattice points), "
-				  << bake.storedBricks << " of " << bake.bricks << " bricks stored, "
-				  << bodyfit_bench::fmt(bake.seconds, 1) << " s; Lipschitz bound "
-				  << bodyfit_bench::fmt(double(bake.field->getLipschitz()), 3) << ", seam "
-				  << bodyfit_bench::fmt(double(bake.field->getSeam()) * 1e3, 4) << " mm, max error (band) "
-				  << bodyfit_bench::fmt(bake.maxError * 1e3, 3) << " mm\n\n";
+		bodyfit::SkinFieldOptions skinOptions;
+		skinOptions.skinOffset = s.skin;
+		std::cerr << "colliders_patch: skin field bake (bodyfit::bakeSkinField, h 5 mm, clamp 12 mm)\n";
+		const auto t0 = std::chrono::steady_clock::now();
+		const bodyfit::SkinField baked = bodyfit::bakeSkinField(mesh.full, ellipsoids, skinOptions);
+		const double bakeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+		skinField = bodyfit::createSkinDistanceField(baked);
+		std::cout << "(t) field: bodyfit::bakeSkinField, " << baked.storedBricks() << " of " << baked.brickCount()
+				  << " bricks stored, " << bodyfit_bench::fmt(bakeSeconds * 1e3, 1) << " ms; Lipschitz bound "
+				  << bodyfit_bench::fmt(double(skinField->getLipschitz()), 3) << ", seam "
+				  << bodyfit_bench::fmt(double(skinField->getSeam()) * 1e3, 4) << " mm, max error (band and skin samples) "
+				  << bodyfit_bench::fmt(baked.maxError * 1e3, 3) << " mm\n\n";
 	}
-	const bool paired = cases.find('a') != std::string::npos && bake.field;
+	const bool paired = cases.find('a') != std::string::npos && skinField;
 	Result pairedTight;
 	if (paired)
 	{
-		const std::pair<Result, Result> both = runPaired(s, body, bake.field.get());
+		const std::pair<Result, Result> both = runPaired(s, body, skinField.get());
 		results.push_back(both.first);
 		pairedTight = both.second;
 	}
@@ -461,8 +466,8 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(colliders_patch,
 		results.push_back(runCase(ColliderKind::EllipsoidsSdf, s, body));
 	if (paired)
 		results.push_back(pairedTight);
-	else if (bake.field)
-		results.push_back(runCase(ColliderKind::Ellipsoids, s, body, bake.field.get()));
+	else if (skinField)
+		results.push_back(runCase(ColliderKind::Ellipsoids, s, body, skinField.get()));
 
 	bodyfit_bench::Table t({"collider", "ms/step (CPU)", "collision ms/step (CPU)", "collision ns/node",
 							"of which our collider ns/node", "ms/step (wall)", "collision ms/step (wall)", "inside mesh (end)", "inside mesh (worst)",

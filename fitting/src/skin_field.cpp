@@ -3,6 +3,7 @@
 
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/inside_test.h"
+#include "bodyfit/fitting/parallel.h"
 
 #include <algorithm>
 #include <cmath>
@@ -319,6 +320,25 @@ void latticeRange(const Lattice& L, const Eigen::Vector3d& boxMin, const Eigen::
 	}
 }
 
+/// The threads of the bake split the lattice into slabs of whole brick layers across y (the body's long axis, so
+/// that the parts hold about the same skin).
+constexpr int kSlabAxis = 1;
+
+/// Lattice layers [lo, hi] along kSlabAxis: the part of the lattice one thread of the bake writes.
+struct LatticeSlab
+{
+	long long lo = 0, hi = -1;
+
+	/// The slab of brick layers [first, end) (every layer of those bricks' owned points).
+	static LatticeSlab ofBricks(int first, int end) { return {(long long)first * B, (long long)end * B - 1}; }
+	/// The box [boxLo, boxHi] grown by `grow` meets the slab's layers.
+	bool meets(const Lattice& L, const Eigen::Vector3d& boxLo, const Eigen::Vector3d& boxHi, double grow) const
+	{
+		const double o = L.origin[kSlabAxis];
+		return boxHi[kSlabAxis] + grow >= o + L.h * double(lo) && boxLo[kSlabAxis] - grow <= o + L.h * double(hi);
+	}
+};
+
 /// Marks the bricks within `clamp` of a triangle's box as near and gives each a slot of owned points.
 OwnedPoints nearBricks(const Lattice& L, const std::vector<PlaneTriangle>& triangles, double clamp)
 {
@@ -391,8 +411,10 @@ struct FeatureRegion
 /// Measures T at every lattice point of R: per lattice row along R.axis, the interval its half-spaces leave
 /// (widened by a nanometre, so a point on a boundary is kept). Rows run along the axis nearest the feature's normal,
 /// which crosses the thin regions of a smooth skin in few rows. A half-space reads c + dr r + du u + dv v <= 0 at the
-/// lattice point with coordinate r along the row and u, v across it.
-void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, OwnedPoints& owned)
+/// lattice point with coordinate r along the row and u, v across it. Only the points of `slab` are measured (one
+/// thread's part of the lattice); a row starts where the whole region's row starts, so every point gets the same
+/// coordinates, to the bit, whatever the slabs.
+void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, const LatticeSlab& slab, OwnedPoints& owned)
 {
 	constexpr double kSlack = 1e-9; // metres
 	constexpr int kMaxPlanes = 32;  // more (a vertex of valence > 32) are dropped: the region only grows
@@ -412,6 +434,11 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, Owne
 	}
 	long long lo[3], hi[3], P[3];
 	latticeRange(L, R.lo, R.hi, 0.0, lo, hi);
+	const int sa = kSlabAxis;
+	if (ra != sa) // the slab's axis runs across the rows: keep the rows in the slab (a row does not depend on others)
+		lo[sa] = std::max(lo[sa], slab.lo), hi[sa] = std::min(hi[sa], slab.hi);
+	else if (lo[sa] > slab.hi || hi[sa] < slab.lo)
+		return;
 	const double step[3] = {L.h * T.u[ra], L.h * T.v[ra], L.h * T.n[ra]};
 	for (long long V = lo[va]; V <= hi[va]; ++V)
 	{
@@ -436,8 +463,10 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, Owne
 			P[ua] = U, P[va] = V, P[ra] = (long long)std::ceil(ra0);
 			const Eigen::Vector3d d = L.point(P[0], P[1], P[2]) - T.v0;
 			double s = d.dot(T.u), t = d.dot(T.v), w = d.dot(T.n);
-			for (; P[ra] <= (long long)std::floor(ra1); ++P[ra], s += step[0], t += step[1], w += step[2])
-				measure(T, s, t, w, owned.index(L, P[0], P[1], P[2]), owned);
+			const long long last = ra == sa ? std::min((long long)std::floor(ra1), slab.hi) : (long long)std::floor(ra1);
+			for (; P[ra] <= last; ++P[ra], s += step[0], t += step[1], w += step[2])
+				if (ra != sa || P[sa] >= slab.lo)
+					measure(T, s, t, w, owned.index(L, P[0], P[1], P[2]), owned);
 		}
 	}
 }
@@ -548,11 +577,13 @@ bool vertexRegion(const TriMesh& mesh, const MeshTopology& topo, const std::vect
 	return vertexConeBox(pv, R.n, clamp, R.lo, R.hi);
 }
 
-/// Step 2: every lattice point within clamp of the skin gets its exact nearest distance and sign, by scanning each
-/// feature's region with a face that holds the feature (the face is at least as near as the feature, and no nearer
-/// than the skin).
-void exactDistances(const TriMesh& mesh, const MeshTopology& topo, const std::vector<PlaneTriangle>& planes,
-					const std::vector<int>& planeOf, const Lattice& L, double clamp, OwnedPoints& owned)
+/// Step 2 for the points of one slab: every lattice point within clamp of the skin gets its exact nearest distance
+/// and sign, by scanning each feature's region with a face that holds the feature (the face is at least as near as
+/// the feature, and no nearer than the skin). The features come in a fixed order (faces with their edges, then
+/// vertices), so a point meets the same measurements in the same order whatever the slabs.
+void exactDistancesInSlab(const TriMesh& mesh, const MeshTopology& topo, const std::vector<PlaneTriangle>& planes,
+						  const std::vector<int>& planeOf, const Lattice& L, double clamp, const LatticeSlab& slab,
+						  OwnedPoints& owned)
 {
 	FeatureRegion R;
 	std::vector<int> faces;
@@ -561,8 +592,11 @@ void exactDistances(const TriMesh& mesh, const MeshTopology& topo, const std::ve
 		const int plane = planeOf[std::size_t(f)];
 		if (plane < 0)
 			continue;
-		faceRegion(mesh, f, planes[std::size_t(plane)], clamp, R);
-		scan(R, planes[std::size_t(plane)], L, owned);
+		const PlaneTriangle& T = planes[std::size_t(plane)];
+		if (!slab.meets(L, T.boxMin, T.boxMax, 2.0 * clamp)) // the face's and its edges' regions reach 2 clamp out
+			continue;
+		faceRegion(mesh, f, T, clamp, R);
+		scan(R, T, L, slab, owned);
 		for (int k = 0; k < 3; ++k)
 		{
 			const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3);
@@ -572,19 +606,56 @@ void exactDistances(const TriMesh& mesh, const MeshTopology& topo, const std::ve
 			if (faces.front() != f)
 				continue; // each edge once, from its first face
 			edgeRegion(mesh, topo, a, b, faces, clamp, R);
-			scan(R, planes[std::size_t(plane)], L, owned);
+			scan(R, T, L, slab, owned);
 		}
 	}
 	for (int v = 0; v < mesh.vertexCount(); ++v)
+	{
+		const Eigen::Vector3d pv = mesh.V.row(v).transpose();
+		if (!slab.meets(L, pv, pv, clamp))
+			continue;
 		for (int s = topo.start[std::size_t(v)]; s < topo.start[std::size_t(v) + 1]; ++s)
 		{
 			const int plane = planeOf[std::size_t(topo.faces[std::size_t(s)])];
 			if (plane < 0)
 				continue;
 			if (vertexRegion(mesh, topo, planeOf, v, clamp, R))
-				scan(R, planes[std::size_t(plane)], L, owned);
+				scan(R, planes[std::size_t(plane)], L, slab, owned);
 			break;
 		}
+	}
+}
+
+/// Step 2 on `threads` threads, each on a slab of brick layers of its own, the slabs cut so that each holds about as
+/// much skin area (each triangle counted in the layer of its box's centre; the work goes with the band's volume), in
+/// whole square millimetres so that the cut is exact arithmetic.
+void exactDistances(const TriMesh& mesh, const MeshTopology& topo, const std::vector<PlaneTriangle>& planes,
+					const std::vector<int>& planeOf, const Lattice& L, double clamp, int threads, OwnedPoints& owned)
+{
+	const int layers = L.dims[kSlabAxis];
+	std::vector<long long> before(std::size_t(layers) + 1, 0); // skin area (mm^2) in the layers below each layer
+	for (const PlaneTriangle& T : planes)
+	{
+		const double u = (0.5 * (T.boxMin + T.boxMax)[kSlabAxis] - L.origin[kSlabAxis]) / (B * L.h);
+		before[std::size_t(std::clamp(int(u), 0, layers - 1)) + 1] += 1 + (long long)(0.5e6 * T.x1 * T.y2);
+	}
+	for (int j = 0; j < layers; ++j)
+		before[std::size_t(j) + 1] += before[std::size_t(j)];
+	const int parts = std::max(1, std::min(threads, layers));
+	std::vector<int> cut(std::size_t(parts) + 1, layers); // slab p: layers [cut[p], cut[p + 1])
+	cut[0] = 0;
+	for (int p = 1; p < parts; ++p)
+	{
+		const long long target = before.back() * p / parts;
+		cut[std::size_t(p)] = int(std::lower_bound(before.begin(), before.end(), target) - before.begin());
+		cut[std::size_t(p)] = std::clamp(cut[std::size_t(p)], cut[std::size_t(p) - 1], layers);
+	}
+	parallelRanges(parts, parts, [&](int first, int end) {
+		for (int p = first; p < end; ++p)
+			if (cut[std::size_t(p)] < cut[std::size_t(p) + 1])
+				exactDistancesInSlab(mesh, topo, planes, planeOf, L, clamp,
+									 LatticeSlab::ofBricks(cut[std::size_t(p)], cut[std::size_t(p) + 1]), owned);
+	});
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -604,8 +675,8 @@ void latticeOf(const Lattice& L, const OwnedPoints& owned, long long p, long lon
 /// the voxel have a wrong sign between them. The pseudo-normal sign fails where the mesh passes through itself (toes
 /// or fingers pressed into each other): there the ray-parity test of fitting/inside_test.h (inside the union of the
 /// closed components, a vote over three axes) decides both points' signs, and a point whose sign it changes has its
-/// exact neighbours decided the same way in turn. Returns the number of signs changed.
-int repairSigns(const TriMesh& mesh, const Lattice& L, OwnedPoints& owned)
+/// exact neighbours decided the same way in turn. Returns the number of signs changed. On `threads` threads.
+int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints& owned)
 {
 	const double limit = L.h * (1.0 + 1e-5) + 1e-9; // the distances went through float
 	auto signedDistance = [&](long long p) { return owned.sign[std::size_t(p)] * std::sqrt(double(owned.best2[std::size_t(p)])); };
@@ -626,44 +697,69 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, OwnedPoints& owned)
 		return q >= 0 && owned.sign[std::size_t(p)] != owned.sign[std::size_t(q)] &&
 			   std::abs(signedDistance(p) - signedDistance(q)) > limit;
 	};
-	long long P[3];
-	for (long long slot = 0; slot < (long long)owned.slotBrick.size(); ++slot)
-		for (int c = 0; c < B; ++c)
-			for (int b = 0; b < B; ++b)
-				for (int a = 0; a < B; ++a)
-				{
-					const long long p = slot * kOwned + a + B * (b + B * c);
-					if (!owned.touched(p))
-						continue;
-					const int local[3] = {a, b, c}, stride[3] = {1, B, B * B};
-					for (int axis = 0; axis < 3; ++axis)
+	// The suspect pairs, found per slab of slots in parallel and queued in slot order.
+	const int slots = int(owned.slotBrick.size());
+	std::vector<std::vector<long long>> pairs(std::size_t(std::max(1, std::min(threads, slots))));
+	parallelParts(slots, threads, [&](int part, int first, int end) {
+		long long P[3];
+		for (long long slot = first; slot < end; ++slot)
+			for (int c = 0; c < B; ++c)
+				for (int b = 0; b < B; ++b)
+					for (int a = 0; a < B; ++a)
 					{
-						long long q = -1; // the +axis neighbour: in the same brick, or found through the lattice
-						if (local[axis] < B - 1)
-							q = owned.touched(p + stride[axis]) ? p + stride[axis] : -1;
-						else
-							latticeOf(L, owned, p, P), q = exactNeighbour(P, axis, 1);
-						if (suspect(p, q))
-							push(p), push(q);
+						const long long p = slot * kOwned + a + B * (b + B * c);
+						if (!owned.touched(p))
+							continue;
+						const int local[3] = {a, b, c}, stride[3] = {1, B, B * B};
+						for (int axis = 0; axis < 3; ++axis)
+						{
+							long long q = -1; // the +axis neighbour: in the same brick, or found through the lattice
+							if (local[axis] < B - 1)
+								q = owned.touched(p + stride[axis]) ? p + stride[axis] : -1;
+							else
+								latticeOf(L, owned, p, P), q = exactNeighbour(P, axis, 1);
+							if (suspect(p, q))
+								pairs[std::size_t(part)].push_back(p), pairs[std::size_t(part)].push_back(q);
+						}
 					}
-				}
+	});
+	for (const std::vector<long long>& partPairs : pairs)
+		for (long long p : partPairs)
+			push(p);
 	if (queue.empty())
 		return 0;
+	// Breadth first, a round at a time: the inside test of a round's points in parallel, then in queue order each
+	// point whose sign it changes queues its exact neighbours for the next round. Every point is decided once, by
+	// the inside test alone, so the signs do not depend on the order (nor on the thread count).
 	const MeshInsideTest inside(mesh);
 	int changed = 0;
-	for (std::size_t head = 0; head < queue.size(); ++head)
+	std::vector<std::int8_t> decided;
+	long long P[3];
+	for (std::size_t head = 0; head < queue.size();)
 	{
-		const long long p = queue[head];
-		latticeOf(L, owned, p, P);
-		const std::int8_t sign = inside.isInside(L.point(P[0], P[1], P[2])) ? -1 : 1;
-		if (sign == owned.sign[std::size_t(p)])
-			continue;
-		owned.sign[std::size_t(p)] = sign;
-		++changed;
-		for (int axis = 0; axis < 3; ++axis)
-			for (int dir = -1; dir <= 1; dir += 2)
-				if (const long long q = exactNeighbour(P, axis, dir); q >= 0)
-					push(q);
+		const std::size_t roundEnd = queue.size();
+		decided.assign(roundEnd - head, 0);
+		parallelRanges(int(roundEnd - head), threads, [&](int first, int end) {
+			long long Q[3];
+			for (int r = first; r < end; ++r)
+			{
+				latticeOf(L, owned, queue[head + std::size_t(r)], Q);
+				decided[std::size_t(r)] = inside.isInside(L.point(Q[0], Q[1], Q[2])) ? -1 : 1;
+			}
+		});
+		for (std::size_t r = 0; head < roundEnd; ++head, ++r)
+		{
+			const long long p = queue[head];
+			if (decided[r] == owned.sign[std::size_t(p)])
+				continue;
+			owned.sign[std::size_t(p)] = decided[r];
+			++changed;
+			latticeOf(L, owned, p, P);
+			for (int axis = 0; axis < 3; ++axis)
+				for (int dir = -1; dir <= 1; dir += 2)
+					if (const long long q = exactNeighbour(P, axis, dir); q >= 0)
+						push(q);
+		}
 	}
 	return changed;
 }
@@ -682,19 +778,15 @@ std::int8_t runSign(const std::vector<long long>& exactX, const std::vector<std:
 	return left <= right ? leftSign : rightSign;
 }
 
-/// Step 3 for the far points (no triangle within clamp; every point of a brick that is not near): along every
-/// lattice row in x, a run of far points takes the sign of the exact point ending it on the nearer side, or + where
-/// it reaches the border (the border bricks are far outside). Two neighbouring points at |d| >= clamp > h, or such a
-/// point and its neighbour, are never on the two sides of the skin, so both ends of a run agree (the nearer one
-/// decides if a wrong sign made them differ). A brick that is not near takes the sign of its row at y = z = 0.
-void signFarPoints(const Lattice& L, OwnedPoints& owned, std::vector<std::int8_t>& brickSign)
+/// signFarPoints for the rows of brick layers y in [firstJ, endJ).
+void signFarPointsInSlab(const Lattice& L, int firstJ, int endJ, OwnedPoints& owned, std::vector<std::int8_t>& brickSign)
 {
 	const long long rowLength = L.ownedExtent(0);
 	std::vector<long long> exactX;
 	std::vector<std::int8_t> exactSign;
 	std::vector<int> nearI;
 	for (int k = 0; k < L.dims[2]; ++k)
-		for (int j = 0; j < L.dims[1]; ++j)
+		for (int j = firstJ; j < endJ; ++j)
 		{
 			nearI.clear();
 			for (int i = 0; i < L.dims[0]; ++i)
@@ -737,6 +829,17 @@ void signFarPoints(const Lattice& L, OwnedPoints& owned, std::vector<std::int8_t
 		}
 }
 
+/// Step 3 for the far points (no triangle within clamp; every point of a brick that is not near): along every
+/// lattice row in x, a run of far points takes the sign of the exact point ending it on the nearer side, or + where
+/// it reaches the border (the border bricks are far outside). Two neighbouring points at |d| >= clamp > h, or such a
+/// point and its neighbour, are never on the two sides of the skin, so both ends of a run agree (the nearer one
+/// decides if a wrong sign made them differ). A brick that is not near takes the sign of its row at y = z = 0.
+/// The rows are independent: `threads` threads take slabs of brick layers in y.
+void signFarPoints(const Lattice& L, int threads, OwnedPoints& owned, std::vector<std::int8_t>& brickSign)
+{
+	parallelRanges(L.dims[1], threads, [&](int firstJ, int endJ) { signFarPointsInSlab(L, firstJ, endJ, owned, brickSign); });
+}
+
 // ---------------------------------------------------------------------------------------------------------------
 // Steps 4-5: quanta, the conservative pass, the stored bricks.
 
@@ -753,16 +856,19 @@ int latticeQuanta(const Lattice& L, const OwnedPoints& owned, const std::vector<
 	return brickSign[std::size_t(L.brickId(int(X / B), int(Y / B), int(Z / B)))] < 0 ? -kMaxQuanta : kMaxQuanta;
 }
 
-void quantise(OwnedPoints& owned, double quantum)
+/// The owned points' signed distances in quanta (on `threads` threads: each point on its own).
+void quantise(OwnedPoints& owned, double quantum, int threads)
 {
 	owned.quanta.resize(owned.best2.size());
-	for (std::size_t p = 0; p < owned.best2.size(); ++p)
-	{
-		const double magnitude =
-			owned.touched((long long)p) ? std::min(double(kMaxQuanta), std::round(std::sqrt(double(owned.best2[p])) / quantum))
-										: double(kMaxQuanta);
-		owned.quanta[p] = std::int16_t(owned.sign[p] < 0 ? -magnitude : magnitude);
-	}
+	parallelRanges(int(owned.slotBrick.size()), threads, [&](int first, int end) {
+		for (std::size_t p = std::size_t(first) * kOwned; p < std::size_t(end) * kOwned; ++p)
+		{
+			const double magnitude = owned.touched((long long)p)
+										 ? std::min(double(kMaxQuanta), std::round(std::sqrt(double(owned.best2[p])) / quantum))
+										 : double(kMaxQuanta);
+			owned.quanta[p] = std::int16_t(owned.sign[p] < 0 ? -magnitude : magnitude);
+		}
+	});
 }
 
 /// The owned points at the 8 corners of a cell (corner n at +(n & 1, n >> 1 & 1, n >> 2) lattice steps; -1 for a
@@ -807,54 +913,94 @@ struct CellCorners
 	}
 };
 
-/// Step 4: every skin sample that reads r > 0 has the 8 corners of its cell lowered by the least change that brings
-/// it to 0 (corner i by w_i r / sum w^2, w the trilinear weights, rounded up to whole quanta). Lowering never raises a
-/// reading, so one pass leaves no sample > 0. Marks the brick each sample is read from in `holdsSkin`; returns the
-/// number of samples that read > 0.
-int lowerSkinReadings(const Lattice& L, const std::vector<Eigen::Vector3d>& samples, OwnedPoints& owned,
-					  const std::vector<std::int8_t>& brickSign, std::vector<char>& holdsSkin)
+/// Step 4 for one skin sample: when it reads r > 0 the 8 corners of its cell are lowered by the least change that
+/// brings it to 0 (corner i by w_i r / sum w^2, w the trilinear weights, rounded up to whole quanta). True when it
+/// read > 0.
+bool lowerSkinReading(const Lattice& L, const CellLocation& c, OwnedPoints& owned, const std::vector<std::int8_t>& brickSign)
 {
-	int lowered = 0;
-	for (const Eigen::Vector3d& p : samples)
+	const CellCorners corners(L, owned, brickSign, c);
+	const double reading = corners.reading(owned);
+	if (reading <= 0.0)
+		return false;
+	double sum2 = 0.0;
+	for (double w : corners.weight)
+		sum2 += w * w;
+	for (int n = 0; n < 8; ++n)
+	{
+		const long long q = corners.point[n];
+		if (q < 0 || corners.weight[n] == 0.0) // q >= 0 always: a corner is within sqrt(3) h < clamp of the skin
+			continue;
+		const int by = int(std::ceil(corners.weight[n] * reading / sum2));
+		owned.quanta[std::size_t(q)] = std::int16_t(std::max(-kMaxQuanta, owned.quanta[std::size_t(q)] - by));
+	}
+	return true;
+}
+
+/// Step 4: every skin sample that reads > 0 is lowered to 0 (lowerSkinReading). Lowering never raises a reading, so
+/// one pass leaves no sample > 0, in any order. The order is fixed by the samples' brick layers in y: a sample reads
+/// and lowers lattice layers [j B, (j + 1) B] of its layer j, so the even layers are done in parallel (each in sample
+/// order), then the odd ones; the result is the same for any thread count. Marks the brick each sample is read from
+/// in `holdsSkin`; returns the number of samples that read > 0.
+int lowerSkinReadings(const Lattice& L, const std::vector<Eigen::Vector3d>& samples, OwnedPoints& owned,
+					  const std::vector<std::int8_t>& brickSign, int threads, std::vector<char>& holdsSkin)
+{
+	// The samples of each brick layer, in sample order (a counting sort; -1: off the grid, which cannot happen as
+	// the grid holds the mesh's box).
+	const int layers = L.dims[kSlabAxis];
+	std::vector<int> layerOf(samples.size(), -1), start(std::size_t(layers) + 1, 0);
+	for (std::size_t s = 0; s < samples.size(); ++s)
 	{
 		CellLocation c;
-		if (!locateCell(L.origin, L.h, L.dims, p, c))
-			continue; // cannot happen: the grid holds the mesh's box
-		holdsSkin[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))] = 1;
-		const CellCorners corners(L, owned, brickSign, c);
-		const double reading = corners.reading(owned);
-		if (reading <= 0.0)
-			continue;
-		++lowered;
-		double sum2 = 0.0;
-		for (double w : corners.weight)
-			sum2 += w * w;
-		for (int n = 0; n < 8; ++n)
-		{
-			const long long q = corners.point[n];
-			if (q < 0 || corners.weight[n] == 0.0) // q >= 0 always: a corner is within sqrt(3) h < clamp of the skin
-				continue;
-			const int by = int(std::ceil(corners.weight[n] * reading / sum2));
-			owned.quanta[std::size_t(q)] = std::int16_t(std::max(-kMaxQuanta, owned.quanta[std::size_t(q)] - by));
-		}
+		if (locateCell(L.origin, L.h, L.dims, samples[s], c))
+			layerOf[s] = c.brick[kSlabAxis], ++start[std::size_t(c.brick[kSlabAxis]) + 1];
 	}
-	return lowered;
+	for (int j = 0; j < layers; ++j)
+		start[std::size_t(j) + 1] += start[std::size_t(j)];
+	std::vector<int> order(std::size_t(start.back()));
+	std::vector<int> fill(start.begin(), start.end() - 1);
+	for (std::size_t s = 0; s < samples.size(); ++s)
+		if (layerOf[s] >= 0)
+			order[std::size_t(fill[std::size_t(layerOf[s])]++)] = int(s);
+	std::vector<int> lowered(std::size_t(layers), 0);
+	for (int parity = 0; parity < 2; ++parity)
+	{
+		const int count = (layers - parity + 1) / 2; // layers parity, parity + 2, ...
+		parallelRanges(count, threads, [&](int first, int end) {
+			for (int j = parity + 2 * first; j < parity + 2 * end; j += 2)
+				for (int r = start[std::size_t(j)]; r < start[std::size_t(j) + 1]; ++r)
+				{
+					CellLocation c;
+					locateCell(L.origin, L.h, L.dims, samples[std::size_t(order[std::size_t(r)])], c);
+					holdsSkin[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))] = 1;
+					lowered[std::size_t(j)] += lowerSkinReading(L, c, owned, brickSign) ? 1 : 0;
+				}
+		});
+	}
+	int total = 0;
+	for (int n : lowered)
+		total += n;
+	return total;
 }
 
 /// The largest |reading| at the skin samples (metres; the true distance there is 0), read as sample() reads the
-/// stored field: the bricks holding skin samples are stored, with the owned points' values.
+/// stored field: the bricks holding skin samples are stored, with the owned points' values. On `threads` threads (a
+/// maximum does not depend on the order).
 double largestSkinReading(const Lattice& L, const std::vector<Eigen::Vector3d>& samples, const OwnedPoints& owned,
-						  const std::vector<std::int8_t>& brickSign, double quantum, double clamp)
+						  const std::vector<std::int8_t>& brickSign, double quantum, double clamp, int threads)
 {
-	double worst = 0.0;
-	for (const Eigen::Vector3d& p : samples)
-	{
-		CellLocation c;
-		if (locateCell(L.origin, L.h, L.dims, p, c))
-			worst = std::max(worst, std::abs(std::clamp(CellCorners(L, owned, brickSign, c).reading(owned) * quantum,
-														-clamp, clamp)));
-	}
-	return worst;
+	const int n = int(samples.size());
+	std::vector<double> worst(std::size_t(std::max(1, std::min(threads, n))), 0.0);
+	parallelParts(n, threads, [&](int part, int first, int end) {
+		for (int i = first; i < end; ++i)
+		{
+			CellLocation c;
+			if (locateCell(L.origin, L.h, L.dims, samples[std::size_t(i)], c))
+				worst[std::size_t(part)] =
+					std::max(worst[std::size_t(part)],
+							 std::abs(std::clamp(CellCorners(L, owned, brickSign, c).reading(owned) * quantum, -clamp, clamp)));
+		}
+	});
+	return *std::max_element(worst.begin(), worst.end());
 }
 
 /// The ellipsoid union grown by r, for the test of a brick: the boxes, the smallest semi-axes.
@@ -1010,22 +1156,26 @@ void validateSkinFieldOptions(const SkinFieldOptions& o)
 	check(o.voxel, 0.0005, 0.05, "voxel");
 	check(o.clamp, 2.0 * o.voxel, 0.1, "clamp (at least 2 voxels)");
 	check(o.skinOffset, 0.0, 0.1, "skin offset");
+	if (o.threads < 0 || o.threads > 256)
+		throw InvalidInputError("skin field: threads must be in [0, 256] (0 = every hardware thread; got " +
+								std::to_string(o.threads) + ")");
 }
 
 SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellipsoids, const SkinFieldOptions& options)
 {
 	validateSkinFieldOptions(options);
 	checkMesh(mesh);
+	const int threads = resolveThreads(options.threads);
 	const Lattice L = makeLattice(mesh, options);
 	const MeshTopology topo(mesh);
 	std::vector<int> planeOf;
 	const std::vector<PlaneTriangle> planes = planeTriangles(mesh, topo, planeOf);
 
 	OwnedPoints owned = nearBricks(L, planes, options.clamp);
-	exactDistances(mesh, topo, planes, planeOf, L, options.clamp, owned);
-	const int repaired = repairSigns(mesh, L, owned);
+	exactDistances(mesh, topo, planes, planeOf, L, options.clamp, threads, owned);
+	const int repaired = repairSigns(mesh, L, threads, owned);
 	std::vector<std::int8_t> brickSign(std::size_t(L.brickCount()), 0);
-	signFarPoints(L, owned, brickSign);
+	signFarPoints(L, threads, owned, brickSign);
 
 	SkinField field;
 	field.repairedSigns = repaired;
@@ -1034,11 +1184,11 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	field.clamp = options.clamp;
 	field.skinOffset = options.skinOffset;
 	field.nx = L.dims[0], field.ny = L.dims[1], field.nz = L.dims[2];
-	quantise(owned, field.quantum());
+	quantise(owned, field.quantum(), threads);
 
 	const std::vector<Eigen::Vector3d> skin = skinSamplePoints(mesh, L.h);
 	std::vector<char> stored(std::size_t(L.brickCount()), 0);
-	field.loweredSamples = lowerSkinReadings(L, skin, owned, brickSign, stored);
+	field.loweredSamples = lowerSkinReadings(L, skin, owned, brickSign, threads, stored);
 	const double halfDiagonal = 0.5 * std::sqrt(3.0) * B * L.h;
 	const GrownUnion grown(ellipsoids, options.skinOffset + 2.0 * L.h);
 	for (int slot = 0; slot < int(owned.slotBrick.size()); ++slot)
@@ -1052,7 +1202,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	}
 	gatherBricks(L, owned, brickSign, stored, field);
 	field.maxError =
-		std::max(field.maxError, largestSkinReading(L, skin, owned, brickSign, field.quantum(), field.clamp));
+		std::max(field.maxError, largestSkinReading(L, skin, owned, brickSign, field.quantum(), field.clamp, threads));
 	return field;
 }
 

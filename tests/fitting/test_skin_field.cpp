@@ -312,6 +312,27 @@ TEST_CASE("skin field: deterministic", "[skin_field]")
 	CHECK(a.maxError == b.maxError);
 }
 
+TEST_CASE("skin field: the same bytes for 1, 2 and 5 threads", "[skin_field]")
+{
+	// The threads split the exact distances, the sign repair, the far signs, the quantisation and the conservative
+	// pass into slabs of brick layers; a body exercises all of them (its toes pass through each other, so the sign
+	// repair runs, and its skin reads > 0 in places, so the conservative pass lowers samples). Five threads on a grid
+	// of ~50 brick layers leave slabs of unequal size, and the odd count puts a slab border in every parity.
+	const TriMesh body = bodyfit::loadTriMesh(bodyfit_test::assetPath("male_young.4508v.obj")).mesh;
+	SkinFieldOptions o;
+	o.threads = 1;
+	const SkinField one = bodyfit::bakeSkinField(body, {}, o);
+	CAPTURE(one.repairedSigns, one.loweredSamples, one.storedBricks());
+	CHECK(one.loweredSamples > 0);
+	const std::string bytes = bodyfit::skinFieldBytes(one);
+	for (int threads : {2, 5})
+	{
+		CAPTURE(threads);
+		o.threads = threads;
+		CHECK(bodyfit::skinFieldBytes(bodyfit::bakeSkinField(body, {}, o)) == bytes);
+	}
+}
+
 TEST_CASE("skin field: bad options and meshes are one-line errors", "[skin_field]")
 {
 	const TriMesh box = bodyfit_test::subdividedCube(0.1, 2);
@@ -340,6 +361,9 @@ TEST_CASE("skin field: bad options and meshes are one-line errors", "[skin_field
 	o = {};
 	o.skinOffset = -0.001;
 	bad(o, "skin offset");
+	o = {};
+	o.threads = -1;
+	bad(o, "threads");
 
 	TriMesh empty;
 	CHECK_THROWS_AS(bodyfit::bakeSkinField(empty, {}), bodyfit::InvalidInputError);

@@ -67,8 +67,10 @@
 /// and every unstored brick has the true sign (a lattice point in the band too, unless the conservative pass lowered
 /// it through zero next to skin thinner than a voxel); points outside the grid and in kFarOutside bricks read +clamp,
 /// in kFarInside bricks -clamp. Not guaranteed: the 1 mm of issue 14 where the skin is thinner than a voxel (the
-/// measured errors are in tests/fitting/test_skin_field.cpp and README.md). Deterministic (no threads, a fixed
-/// traversal order).
+/// measured errors are in tests/fitting/test_skin_field.cpp and README.md). Deterministic, the same bytes for any
+/// thread count (SkinFieldOptions::threads): the threads take slabs of whole brick layers in y; in steps 2-3 each
+/// writes only its slab's points, meeting the features in the same fixed order, and in step 4 the samples go by
+/// brick layer, the even layers in parallel, then the odd ones (a sample changes only its own layer's cells).
 
 #include "bodyfit/fitting/ellipsoid.h"
 #include "bodyfit/fitting/types.h"
@@ -87,6 +89,8 @@ struct SkinFieldOptions
 	double voxel = 0.005;      ///< lattice spacing h (metres)
 	double clamp = 0.012;      ///< distances are accurate within |d| < clamp; beyond, only the sign (metres)
 	double skinOffset = 0.002; ///< the collider's skin offset: bricks meeting the union grown by this + 2h are kept
+	/// Threads of the bake (0 = every hardware thread; parallel.h). The field is the same bit for bit for any count.
+	int threads = 0;
 };
 
 /// Brick index values that are not sample blocks.
@@ -128,7 +132,7 @@ struct SkinField
 
 /// \throws InvalidInputError naming the first bad option: voxel in [0.0005, 0.05] m, clamp in [2 voxel, 0.1] m (a
 /// cell's corners lie within sqrt(3) h of a point in it, so they carry real distances only if clamp > sqrt(3) h),
-/// skinOffset in [0, 0.1] m, all finite.
+/// skinOffset in [0, 0.1] m, all finite; threads in [0, 256].
 void validateSkinFieldOptions(const SkinFieldOptions& options);
 
 /// Bakes the field of `mesh` (body frame; closed, CCW = outward) for a fit with `ellipsoids` (steps 1-5 above).
