@@ -23,7 +23,7 @@ import json, sys
 scene, assets, body, out = sys.argv[1:]
 s = json.load(open(scene))
 s["name"] = s["name"] + "@" + body
-s["body"] = {"mesh": "%s/%s.obj" % (assets, body)}
+s["body"] = {"mesh": "%s/%s.obj" % (assets, body), "fit": {}}
 s["garment"]["mesh"] = "%s/%s.%s.obj" % (assets, body, s["garment"]["type"])
 json.dump(s, open(out, "w"), indent=1)
 PY
