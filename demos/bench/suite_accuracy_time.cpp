@@ -241,27 +241,31 @@ int runAccuracyTime(const bodyfit_bench::Context& ctx)
 		}
 		return cmd;
 	};
-	plot(ctx, "accuracy_time_contact_gap",
-		 series + "set title 'Mean contact gap to the skin vs ellipsoid count (patch drop)'\n"
-				  "set xlabel 'ellipsoids'\nset ylabel 'mean contact gap (mm)'\nset logscale x 2\nset yrange [0:*]\n" +
-			 bothSurfaces("$31", "$22"));
-	plot(ctx, "accuracy_time_contact_gap_p95",
-		 series + "set title 'p95 contact gap to the skin vs ellipsoid count (patch drop)'\n"
-				  "set xlabel 'ellipsoids'\nset ylabel 'p95 contact gap (mm)'\nset logscale x 2\nset yrange [0:*]\n" +
-			 bothSurfaces("$32", "$26"));
-	plot(ctx, "accuracy_time_surface_error",
-		 series + "set title 'Surface to skin: union mean air gap (dashed) vs skin field max error (solid)'\n"
-				  "set xlabel 'ellipsoids'\nset ylabel 'mm'\nset logscale x 2\nset logscale y\n" +
-			 bothSurfaces("$28", "$9"));
-	plot(ctx, "accuracy_time_tight_collision",
-		 series + "set title 'Cloth collision cost vs ellipsoid count, both surfaces (patch drop)'\n"
-				  "set xlabel 'ellipsoids'\nset ylabel 'collision ns / node / step'\nset logscale x 2\n"
-				  "set yrange [0:*]\n" +
-			 bothSurfaces("$29", "$18"));
-	plot(ctx, "accuracy_time_bake",
-		 series + "set title 'Skin field bake (thread CPU) vs ellipsoid count'\n"
-				  "set xlabel 'ellipsoids'\nset ylabel 'bake ms'\nset logscale x 2\nset yrange [0:*]\n" +
-			 bothSurfaces("$27", ""));
+	// One plot per measure: file name, title, y label, further axis settings, the tight and the ellipsoid column.
+	const struct
+	{
+		const char* name;
+		const char* title;
+		const char* ylabel;
+		const char* axes;
+		const char* tightCol;
+		const char* ellipsoidCol; ///< "": the measure has no ellipsoid counterpart
+	} surfacePlots[] = {
+		{"accuracy_time_contact_gap", "Mean contact gap to the skin vs ellipsoid count (patch drop)",
+		 "mean contact gap (mm)", "set yrange [0:*]\n", "$31", "$22"},
+		{"accuracy_time_contact_gap_p95", "p95 contact gap to the skin vs ellipsoid count (patch drop)",
+		 "p95 contact gap (mm)", "set yrange [0:*]\n", "$32", "$26"},
+		{"accuracy_time_surface_error", "Surface to skin: union mean air gap (dashed) vs skin field max error (solid)",
+		 "mm", "set logscale y\n", "$28", "$9"},
+		{"accuracy_time_tight_collision", "Cloth collision cost vs ellipsoid count, both surfaces (patch drop)",
+		 "collision ns / node / step", "set yrange [0:*]\n", "$29", "$18"},
+		{"accuracy_time_bake", "Skin field bake (thread CPU) vs ellipsoid count", "bake ms", "set yrange [0:*]\n",
+		 "$27", ""},
+	};
+	for (const auto& p : surfacePlots)
+		plot(ctx, p.name,
+			 series + "set title '" + p.title + "'\nset xlabel 'ellipsoids'\nset ylabel '" + p.ylabel +
+				 "'\nset logscale x 2\n" + p.axes + bothSurfaces(p.tightCol, p.ellipsoidCol));
 	{
 		std::string cmd = series +
 						  "set title 'Accuracy vs time: mean air gap vs fit time (open: all settings; line: Pareto front)'\n"
