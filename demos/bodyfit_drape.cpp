@@ -16,8 +16,11 @@
 #include "bodyfit/fitting/mesh_io.h"
 #include "common/cli.h"
 
+#include <Eigen/Core>
+
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -33,6 +36,7 @@ namespace
 const char* kUsage =
 	"usage: bodyfit-drape SCENE.json [--body MESH] [--ellipsoids FIT.json] [--collider KIND] [--steps N]\n"
 	"                     [--surface tight|ellipsoids] [--frames DIR] [--metrics OUT.json] [--png OUT.png] [--show body|ellipsoids]\n"
+	"                     [--png-zoom X,Y,Z,R]\n"
 	"\n"
 	"Runs a cloth scene (demos/scenes/*.json) headless with Bullet and writes metrics and pictures.\n"
 	"  --body MESH          body mesh instead of the scene's body.mesh\n"
@@ -50,6 +54,8 @@ const char* kUsage =
 	"                       nodes_inside_body, max_nodes_inside_body, mean_contact_gap_m, nan_nodes, ...)\n"
 	"  --png OUT.png        picture of the final state: front and side views, body (or ellipsoids) + cloth\n"
 	"  --show WHAT          draw the body mesh (default) or the ellipsoids in the picture\n"
+	"  --png-zoom X,Y,Z,R   close-up: both views frame the square of half size R around the world point\n"
+	"                       (X, Y, Z) instead of the whole scene (metres; R in 0.01..10)\n"
 	"Progress goes to stderr, a summary to stdout. Exit status: 0 ok, 2 bad input, 1 failure.\n";
 
 /// A run stopped by BlowUpWatch (exit 1: the scene passed every range check, so this is a failure, not bad input).
@@ -68,7 +74,33 @@ struct Args
 {
 	std::string scene, body, ellipsoids, collider, surface, frames, metrics, png, show;
 	int steps = -1;
+	std::optional<Eigen::Vector4d> pngZoom; ///< --png-zoom: centre x, y, z and half size R (metres)
 };
+
+/// --png-zoom X,Y,Z,R: four finite numbers, |X|, |Y|, |Z| <= 1000 m, R in 0.01..10 m.
+Eigen::Vector4d parsePngZoom(const std::string& v)
+{
+	const std::string what = "--png-zoom: '" + v + "' is not X,Y,Z,R";
+	if (std::count(v.begin(), v.end(), ',') != 3)
+		badInput(what + " (four comma-separated numbers in metres)");
+	Eigen::Vector4d out;
+	std::size_t pos = 0;
+	for (int k = 0; k < 4; ++k)
+	{
+		const std::size_t comma = k < 3 ? v.find(',', pos) : v.size();
+		const std::string field = v.substr(pos, comma - pos);
+		char* end = nullptr;
+		out[k] = std::strtod(field.c_str(), &end);
+		if (field.empty() || *end != '\0' || !std::isfinite(out[k]))
+			badInput(what + " (field " + std::to_string(k + 1) + " is not a finite number)");
+		pos = comma + 1;
+	}
+	if (out.head<3>().cwiseAbs().maxCoeff() > 1000.0)
+		badInput(what + " (the centre must lie within 1000 m of the origin)");
+	if (!(out[3] >= 0.01 && out[3] <= 10.0))
+		badInput(what + " (R must be in 0.01..10 m)");
+	return out;
+}
 
 Args parseArgs(int argc, char** argv)
 {
@@ -100,6 +132,8 @@ Args parseArgs(int argc, char** argv)
 			a.metrics = value();
 		else if (s == "--png")
 			a.png = value();
+		else if (s == "--png-zoom")
+			a.pngZoom = parsePngZoom(value());
 		else if (s == "--show")
 		{
 			a.show = value();
@@ -124,6 +158,8 @@ Args parseArgs(int argc, char** argv)
 	}
 	if (a.scene.empty())
 		badInput("missing SCENE.json (see --help)");
+	if (a.pngZoom && a.png.empty())
+		badInput("--png-zoom: needs --png OUT.png (it frames that picture)");
 #ifndef BODYFIT_HAVE_RENDER
 	if (!a.png.empty())
 		badInput("--png: this build has no renderer (OSMesa and libpng were not found when it was configured)");
@@ -270,6 +306,11 @@ void writePicture(const Args& args, const bodyfit::drape::Scene& scene, const bo
 		render::RenderOptions ro;
 		ro.width = scene.render.width;
 		ro.height = scene.render.height;
+		if (args.pngZoom)
+		{
+			ro.zoomCenter = args.pngZoom->head<3>();
+			ro.zoomHalfSize = (*args.pngZoom)[3];
+		}
 		render::writePng(args.png, render::renderTwoViews(meshes, ro));
 		std::cout << "picture    " << args.png << " (" << ro.width << "x" << ro.height << ", front | side)\n";
 	}

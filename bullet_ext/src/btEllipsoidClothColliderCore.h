@@ -53,6 +53,8 @@ public:
 	static btScalar contactBand(btScalar skin) { return btScalar(1.5) * skin + btScalar(0.0005); }
 
 	const btEllipsoidCompoundShape* getCompound() const { return m_compound; }
+	/// getContactFlags: the record of `softBody` from the last substep, or 0.
+	const btAlignedObjectArray<unsigned char>* contactFlags(const btSoftBody* softBody) const;
 	/// The skin field of tight mode for the current Config (getActiveSkinField), or 0. btSkinFieldResponse.cpp.
 	const btSkinDistanceField* activeSkinField() const;
 
@@ -92,6 +94,14 @@ private:
 		}
 	};
 
+	/// One soft body's contact flags (getContactFlags) and whether the current substep processed it.
+	struct ContactRecord
+	{
+		const btSoftBody* m_softBody;
+		bool m_current;
+		btAlignedObjectArray<unsigned char> m_flags;
+	};
+
 	btEllipsoidCompoundShape* m_ownedCompound;
 	bool m_bodyInWorld;  ///< the body was in the world's collision object array at install
 	int m_worldIndex;    ///< where it was last seen there
@@ -122,6 +132,14 @@ private:
 	btAlignedObjectArray<int> m_contactCandidates;
 	btEllipsoidUnionPushOut m_pushOut;
 	btSkinFieldGeometry m_skinGeometry; ///< tight mode this substep (its field is 0 in ELLIPSOIDS mode)
+	btAlignedObjectArray<ContactRecord> m_contactRecords; ///< per soft body processed in the last substep
+	unsigned char* m_contactFlags;             ///< the flags collide() fills (0 outside collide())
+	const btSoftBody::Node* m_contactNodeBase; ///< node 0 of that soft body
+
+	/// The soft body's record, cleared and sized to its nodes, marked current; m_contactFlags points into it.
+	void beginContactRecord(const btSoftBody* softBody);
+	/// Drops the records of soft bodies the substep did not process (removed from the world).
+	void dropStaleContactRecords();
 
 	btTransform interpolatedKinematicPose();
 	/// Moves the body pose forward by one substep (m_previousPose, m_currentPose, m_delta).

@@ -256,6 +256,7 @@ struct DrapeResult
 	double collisionNsPerNodeStep = 0.0;
 	int contactNodes = 0;
 	double meanContactGapM = 0.0;   ///< mean distance of contact nodes to the skin (negative = inside)
+	double p95ContactGapM = 0.0;    ///< their 95th percentile
 	int nodesInsideBody = 0;        ///< at the end
 	int maxNodesInsideBody = 0;     ///< over the sampled steps
 	int nanNodes = 0;
@@ -290,6 +291,7 @@ inline DrapeResult runDrape(const bodyfit::drape::Scene& scene, const bodyfit::d
 	r.collisionNsPerNodeStep = r.collisionMsPerStep * 1e6 / std::max(1, r.nodes);
 	r.contactNodes = m.value("contact_nodes", 0);
 	r.meanContactGapM = m["mean_contact_gap_m"].is_number() ? m["mean_contact_gap_m"].get<double>() : 0.0;
+	r.p95ContactGapM = m["p95_contact_gap_m"].is_number() ? m["p95_contact_gap_m"].get<double>() : 0.0;
 	r.nodesInsideBody = m.value("nodes_inside_body", 0);
 	r.maxNodesInsideBody = m.value("max_nodes_inside_body", 0);
 	r.nanNodes = m.value("max_nan_nodes", 0);

@@ -1,12 +1,15 @@
 // bodyfit-bench accuracy-time: what accuracy costs in time. For every bundled full-resolution body, a sweep of the
 // refinement thresholds (coarse -> fine) and of the --max-ellipsoids budgets 16/32/64/128; per point: ellipsoid
 // count, fit time, mean radial error (paper eq. 6), air gap mean/p95/max, skin outside the union, voxel IoU
-// (fit_quality.h), and a short cloth patch drop over the head and shoulders with the ellipsoid collider: collision
-// ns per node per step, contact gap and nodes inside the real body mesh. (Bullet's mesh collider is compared in the
-// garment-resolution, body-resolution and colliders suites: on this drop it costs minutes per body.)
+// (fit_quality.h), and a short cloth patch drop over the head and shoulders with the ellipsoid collider on both
+// surfaces: the paper's ellipsoid surface and the tight skin surface (issue 14; the fit's skin field baked for it,
+// bake thread CPU time and the field's max error): collision ns per node per step, contact gap (mean, p95: the nodes
+// the collider touched in its last substep) and nodes inside the real body mesh. (Bullet's mesh collider is compared
+// in the garment-resolution, body-resolution and colliders suites: on this drop it costs minutes per body.)
 #include "bench/study_common.h"
 
 #include "bodyfit/fitting/fit_quality.h"
+#include "bodyfit/fitting/skin_field.h"
 
 namespace
 {
@@ -70,7 +73,9 @@ int runAccuracyTime(const bodyfit_bench::Context& ctx)
 	Table t({"body", "kind", "mu_torso", "mu_limbs", "budget", "ellipsoids", "fit_ms", "radial_error_mm",
 			 "air_gap_mean_mm", "air_gap_p95_mm", "air_gap_max_mm", "union_under_skin_pct", "skin_outside_pct",
 			 "skin_outside_max_mm", "voxel_iou", "body_covered_pct", "union_outside_body_pct", "coll_ns_node_step", "coll_ms_step", "step_ms", "contact_nodes",
-			 "contact_gap_mm", "inside_body_end", "inside_body_max", "pareto"});
+			 "contact_gap_mm", "inside_body_end", "inside_body_max", "pareto", "contact_gap_p95_mm", "bake_cpu_ms",
+			 "field_max_error_mm", "tight_coll_ns_node_step", "tight_contact_nodes", "tight_contact_gap_mm",
+			 "tight_contact_gap_p95_mm", "tight_inside_body_end", "tight_inside_body_max"});
 	Table paretoRows({"body", "ellipsoids", "fit_ms", "air_gap_mean_mm"});
 	int rc = 0;
 	for (const BodyAsset& asset : bundledBodies())
@@ -96,11 +101,21 @@ int runAccuracyTime(const bodyfit_bench::Context& ctx)
 			const bodyfit::BodyFit fit = timedFit(body, o, fitRepeats, &fitMs);
 			const std::vector<bodyfit::Ellipsoid> ells = ellipsoidsOf(fit);
 			const bodyfit::FitQuality q = bodyfit::measureFitQuality(reference, ells, qopt);
-			const bodyfit::drape::Scene scene =
+			bodyfit::drape::Scene scene =
 				patchDropScene(assetPath(asset.full), body.mesh.full, bodyfit::drape::ColliderKind::Ellipsoids, drop);
-			const bodyfit::drape::BodyData bd = bodyData(body.mesh.full, ells, assetPath(asset.full), "sweep");
+			scene.collider.tightSurface = false;
+			bodyfit::drape::BodyData bd = bodyData(body.mesh.full, ells, assetPath(asset.full), "sweep");
 			const DrapeResult d = runDrape(scene, bd, drapeRepeats, drop.steps);
-			if (d.nanNodes > 0)
+			// The tight surface: the same drop on the skin field of this fit, baked for the scene's skin offset.
+			bodyfit::SkinFieldOptions bakeOptions;
+			bakeOptions.skinOffset = scene.collider.skinOffset;
+			bodyfit::SkinField field;
+			const double bakeCpuMs = bodyfit_bench::medianCpuMs(
+				fitRepeats, [&] { field = bodyfit::bakeSkinField(body.mesh.full, ells, bakeOptions); });
+			bd.skinField = std::make_shared<const bodyfit::SkinField>(std::move(field));
+			scene.collider.tightSurface = true;
+			const DrapeResult tight = runDrape(scene, bd, drapeRepeats, drop.steps);
+			if (d.nanNodes > 0 || tight.nanNodes > 0)
 				rc = 1;
 			progress(tag, "%s %s mu=%.4f/%.4f budget=%d: %zu ellipsoids, fit %.0f ms, gap %.1f mm, IoU %.3f, "
 						  "%.0f ns/node/step",
@@ -118,7 +133,11 @@ int runAccuracyTime(const bodyfit_bench::Context& ctx)
 							fmt(d.collisionNsPerNodeStep, 0),
 							fmt(d.collisionMsPerStep, 3), fmt(d.msPerStep, 2), fmtInt(d.contactNodes),
 							fmt(d.meanContactGapM * 1e3, 2), fmtInt(d.nodesInsideBody),
-							fmtInt(d.maxNodesInsideBody), ""});
+							fmtInt(d.maxNodesInsideBody), "", fmt(d.p95ContactGapM * 1e3, 2), fmt(bakeCpuMs, 1),
+							fmt(bd.skinField->maxError * 1e3, 2), fmt(tight.collisionNsPerNodeStep, 0),
+							fmtInt(tight.contactNodes), fmt(tight.meanContactGapM * 1e3, 2),
+							fmt(tight.p95ContactGapM * 1e3, 2), fmtInt(tight.nodesInsideBody),
+							fmtInt(tight.maxNodesInsideBody)});
 			cost.push_back(fitMs);
 			error.push_back(q.airGapMean);
 		}
@@ -127,7 +146,7 @@ int runAccuracyTime(const bodyfit_bench::Context& ctx)
 		std::vector<size_t> order;
 		for (size_t i = 0; i < rows.size(); ++i)
 		{
-			rows[i].back() = front[i] ? "1" : "0";
+			rows[i][24] = front[i] ? "1" : "0"; // the pareto column
 			t.addRow(rows[i]);
 			if (front[i])
 				order.push_back(i);
@@ -149,7 +168,12 @@ int runAccuracyTime(const bodyfit_bench::Context& ctx)
 		  << " steps of 1/120 s, " << drop.substeps << " substeps, " << drop.iterations
 		  << " iterations; collision time = Bullet collision detection + our collider per step (median step of "
 		  << drapeRepeats << " run(s)); contact gap: mean distance of the nodes in contact to the skin "
-		  << "(negative = inside); inside_body: nodes inside the real body mesh. pareto = 1: no other setting of the "
+		  << "(negative = inside; contact: the nodes the collider placed, held or pushed out in its last substep); "
+		  << "contact_gap_* and coll_ns_node_step: the ellipsoid surface (the paper's), tight_*: the tight skin "
+		  << "surface on this fit's skin field (voxel " << bodyfit::SkinFieldOptions().voxel * 1e3
+		  << " mm), bake_cpu_ms: its bake (thread CPU, median of " << fitRepeats
+		  << "), field_max_error_mm: the field's recorded max error (SkinField::maxError), the tight surface's "
+		  << "counterpart of the union's air gap; inside_body: nodes inside the real body mesh. pareto = 1: no other setting of the "
 		  << "same body fits faster with a smaller mean air gap. body_covered_pct: share of the body's interior voxels "
 		  << "inside the union; union_outside_body_pct: share of the union's voxels outside the body (ellipsoids of "
 		  << "surface-patch clusters bulge out as much as they reach in, so finer fits cover less of the interior).";
@@ -196,10 +220,52 @@ int runAccuracyTime(const bodyfit_bench::Context& ctx)
 				  "set xlabel 'ellipsoids'\nset ylabel 'fit time (ms)'\nset logscale x 2\nset logscale y\n" +
 			 perBody("$7", "6", true));
 	plot(ctx, "accuracy_time_collision",
-		 series + "set title 'Cloth collision cost vs ellipsoid count (patch drop)'\n"
+		 series + "set title 'Cloth collision cost vs ellipsoid count (patch drop, ellipsoid surface)'\n"
 				  "set xlabel 'ellipsoids'\nset ylabel 'collision ns / node / step'\nset logscale x 2\n"
 				  "set yrange [0:*]\n" +
 			 perBody("$18", "6", true));
+	// The two surfaces side by side (threshold sweeps; solid: tight skin surface, dashed: ellipsoid surface).
+	auto bothSurfaces = [&](const std::string& tightCol, const std::string& ellipsoidCol) {
+		std::string cmd = "plot ";
+		int i = 0;
+		for (const BodyAsset& b : bundledBodies())
+		{
+			const std::string sel = "(strcol(1) eq '" + b.name + "' && strcol(2) eq 'threshold' ? ";
+			const std::string c = "c" + std::to_string(i);
+			cmd += std::string(i ? ", \\\n     " : "") + "'accuracy_time.csv' skip 1 using 6:" + sel + tightCol +
+				   " : NaN) with linespoints lc rgb " + c + " pt 7 title '" + b.name + " tight'";
+			if (!ellipsoidCol.empty())
+				cmd += ", \\\n     'accuracy_time.csv' skip 1 using 6:" + sel + ellipsoidCol +
+					   " : NaN) with linespoints dt 2 lc rgb " + c + " pt 6 title '" + b.name + " ellipsoids'";
+			++i;
+		}
+		return cmd;
+	};
+	// One plot per measure: file name, title, y label, further axis settings, the tight and the ellipsoid column.
+	const struct
+	{
+		const char* name;
+		const char* title;
+		const char* ylabel;
+		const char* axes;
+		const char* tightCol;
+		const char* ellipsoidCol; ///< "": the measure has no ellipsoid counterpart
+	} surfacePlots[] = {
+		{"accuracy_time_contact_gap", "Mean contact gap to the skin vs ellipsoid count (patch drop)",
+		 "mean contact gap (mm)", "set yrange [0:*]\n", "$31", "$22"},
+		{"accuracy_time_contact_gap_p95", "p95 contact gap to the skin vs ellipsoid count (patch drop)",
+		 "p95 contact gap (mm)", "set yrange [0:*]\n", "$32", "$26"},
+		{"accuracy_time_surface_error", "Surface to skin: union mean air gap (dashed) vs skin field max error (solid)",
+		 "mm", "set logscale y\n", "$28", "$9"},
+		{"accuracy_time_tight_collision", "Cloth collision cost vs ellipsoid count, both surfaces (patch drop)",
+		 "collision ns / node / step", "set yrange [0:*]\n", "$29", "$18"},
+		{"accuracy_time_bake", "Skin field bake (thread CPU) vs ellipsoid count", "bake ms", "set yrange [0:*]\n",
+		 "$27", ""},
+	};
+	for (const auto& p : surfacePlots)
+		plot(ctx, p.name,
+			 series + "set title '" + p.title + "'\nset xlabel 'ellipsoids'\nset ylabel '" + p.ylabel +
+				 "'\nset logscale x 2\n" + p.axes + bothSurfaces(p.tightCol, p.ellipsoidCol));
 	{
 		std::string cmd = series +
 						  "set title 'Accuracy vs time: mean air gap vs fit time (open: all settings; line: Pareto front)'\n"
@@ -222,7 +288,8 @@ int runAccuracyTime(const bodyfit_bench::Context& ctx)
 const bodyfit_bench::SuiteRegistrar registerAccuracyTime(
 	"accuracy-time",
 	"threshold sweep (9 settings, --quick 5) + budgets 16/32/64/128 on the 4 bodies: count, fit time, errors, "
-	"air gap, IoU, cloth collision cost (fits: median of 3, --quick 1)",
+	"air gap, IoU, skin field bake; cloth collision cost and contact gap on the ellipsoid and the tight surface "
+	"(fits: median of 3, --quick 1)",
 	&runAccuracyTime);
 
 } // namespace

@@ -229,7 +229,7 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(animated,
 		  << " ms for the contact gap (its distance grid rebuilt). Nodes inside: cloth nodes inside the skinned body mesh of the instant (ray-parity vote), "
 			 "largest over samples every 5 steps. Links crossing: cloth links with both ends outside the skinned body whose "
 			 "segment passes through it (a face cutting into a limb between nodes), largest over the samples. Contact gap: mean signed distance to the skin of the nodes in contact "
-			 "(ours: within skin offset + 3 mm of the ellipsoids; Bullet: holding a rigid contact), averaged over the "
+			 "(ours: the nodes the collider placed, held or pushed out in its last substep; Bullet: holding a rigid contact), averaged over the "
 			 "samples. Time series: animated_series.csv, animated.png.";
 	emitTable(ctx, "animated", "animated body: bone-bound ellipsoids vs Bullet's refitted mesh (walk, skirt)", t,
 			  notes.str());

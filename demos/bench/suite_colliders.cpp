@@ -106,8 +106,8 @@ int runColliders(const bodyfit_bench::Context& ctx)
 		  << " s of wall time, whichever comes first (\"time cap\": Bullet's mesh path is that slow). Times are "
 			 "medians over the steps run. inside_body: cloth nodes inside the real body mesh (ray-parity vote), at "
 			 "the end and the largest of the samples taken every 5 steps; contact gap: mean distance of the nodes in "
-			 "contact to the skin (negative = inside; contact = within skin offset + 3 mm of the ellipsoids, or "
-			 "holding a Bullet contact). Not in the table: Bullet's default soft-body path on the ellipsoid compound "
+			 "contact to the skin (negative = inside; contact = a node bodyfit's collider placed, held or pushed "
+			 "out in its last substep, or one holding a Bullet contact). Not in the table: Bullet's default soft-body path on the ellipsoid compound "
 			 "itself (the drape code has no such collider kind yet).";
 	emitTable(ctx, "colliders", "colliders: every bundled scene with every collider kind", t, notes.str());
 	// Plot: collision ms per step per scene, one bar per collider (log scale).

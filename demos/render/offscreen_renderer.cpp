@@ -160,6 +160,16 @@ Image renderTwoViews(const std::vector<DrawMesh>& meshes, const RenderOptions& o
 			lo[view].setConstant(-1.0);
 			hi[view].setConstant(1.0);
 		}
+		if (options.zoomHalfSize > 0.0)
+		{
+			// The close-up square across the view; the depth range still holds every vertex.
+			const Eigen::Vector3d c = views[view] * options.zoomCenter;
+			for (int k = 0; k < 2; ++k)
+			{
+				lo[view][k] = c[k] - options.zoomHalfSize;
+				hi[view][k] = c[k] + options.zoomHalfSize;
+			}
+		}
 	}
 	const double viewW = 0.5 * W, viewH = H;
 	const double pad = std::clamp(options.paddingFraction, 0.0, 0.4);

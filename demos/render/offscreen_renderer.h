@@ -40,10 +40,14 @@ struct RenderOptions
 	int supersample = 2;                           ///< render at N times the size and box-filter down (1 = off)
 	double paddingFraction = 0.06;                 ///< free border around the scene's bounding box in each view
 	double elevationDeg = 15.0;                    ///< both cameras look down by this angle (orthographic)
+	/// Close-up: when zoomHalfSize > 0, each view frames the square of that half size (metres) around zoomCenter
+	/// (world) instead of every vertex; geometry outside it is cut off.
+	Eigen::Vector3d zoomCenter = Eigen::Vector3d::Zero();
+	double zoomHalfSize = 0.0;
 };
 
 /// Renders the meshes twice (front view from +z, side view from +x, both tilted down by `elevationDeg`), framing
-/// all vertices with the same scale (pixels per metre) in both views.
+/// all vertices (or the close-up square of RenderOptions) with the same scale (pixels per metre) in both views.
 /// \throws std::runtime_error if OSMesa cannot create a context or the size is not in 1..8192.
 Image renderTwoViews(const std::vector<DrawMesh>& meshes, const RenderOptions& options = {});
 

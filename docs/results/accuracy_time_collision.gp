@@ -8,7 +8,7 @@ c0='#1f77b4'
 c1='#d62728'
 c2='#2ca02c'
 c3='#9467bd'
-set title 'Cloth collision cost vs ellipsoid count (patch drop)'
+set title 'Cloth collision cost vs ellipsoid count (patch drop, ellipsoid surface)'
 set xlabel 'ellipsoids'
 set ylabel 'collision ns / node / step'
 set logscale x 2

@@ -3,6 +3,8 @@
 // distances d from the sphere, so inside counts, depths, zeta and gaps are known up to the mesh's chordal error.
 #include "bodyfit/metrics/cloth_metrics.h"
 
+#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
+
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/statistics.h"
 
@@ -220,6 +222,53 @@ TEST_CASE("metrics: rigid-contact rule lists each node holding a Bullet contact 
 	CHECK(contactNodes(*w.cloth, body, options) == std::vector<int>{3, 7, 12});
 	options.rule = ContactRule::None;
 	CHECK(contactNodes(*w.cloth, body, options).empty());
+}
+
+TEST_CASE("metrics: collider-contact rule lists the nodes bodyfit's collider touched in its last substep", "[metrics]")
+{
+	// The sphere as the collider's one ellipsoid at the body pose; free nodes moving straight at it at 0.5 m/s, every
+	// other one 1 mm off the surface (one substep of 1/60 s carries it 8 mm in: the collider places it, a contact), the
+	// others 10 cm off (they move 8 mm and touch nothing).
+	btEllipsoidClothWorld world;
+	world.getWorld()->setGravity(btVector3(0, 0, 0));
+	world.getWorldInfo().m_gravity.setValue(0, 0, 0);
+	btEllipsoidCompoundShape shape;
+	shape.addEllipsoid(btVector3(0, 0, 0), btMatrix3x3::getIdentity(), btVector3(kRadius, kRadius, kRadius));
+	btRigidBody body(btRigidBody::btRigidBodyConstructionInfo(0, nullptr, &shape));
+	body.setWorldTransform(bodyPose());
+	world.getWorld()->addRigidBody(&body);
+	btEllipsoidClothCollider* collider = world.installCollider(&body);
+	REQUIRE(collider != nullptr);
+	std::vector<btVector3> positions;
+	std::vector<int> expected;
+	const int n = 40;
+	std::vector<btVector3> directions;
+	for (int i = 0; i < n; ++i)
+	{
+		const Eigen::Vector3d dir = direction(i, n);
+		directions.push_back(btVector3(btScalar(dir.x()), btScalar(dir.y()), btScalar(dir.z())));
+		const double d = i % 2 == 0 ? 0.001 : 0.1;
+		positions.push_back(bodyPose().getOrigin() + directions.back() * btScalar(kRadius + d));
+		if (i % 2 == 0)
+			expected.push_back(i);
+	}
+	const std::vector<btScalar> masses(positions.size(), btScalar(0.01));
+	btSoftBody cloth(&world.getWorldInfo(), n, positions.data(), masses.data());
+	for (int i = 0; i < n; ++i)
+		cloth.m_nodes[i].m_v = directions[std::size_t(i)] * btScalar(-0.5);
+	world.getWorld()->addSoftBody(&cloth);
+	const BodyReference reference = sphereBody(true);
+	ContactOptions options;
+	options.rule = ContactRule::ColliderContacts;
+	options.collider = collider;
+	CHECK(contactNodes(cloth, reference, options).empty()); // no substep has run: no record yet
+	world.getWorld()->stepSimulation(btScalar(1.0 / 60), 1, btScalar(1.0 / 60));
+	CHECK(contactNodes(cloth, reference, options) == expected);
+	options.collider = nullptr;
+	CHECK_THROWS_AS(contactNodes(cloth, reference, options), bodyfit::InvalidInputError);
+	world.getWorld()->removeSoftBody(&cloth);
+	world.getSoftBodySolver()->uninstallCollider(collider);
+	world.getWorld()->removeRigidBody(&body);
 }
 
 TEST_CASE("metrics: JSON mirrors the typed result, null where a measure is undefined", "[metrics]")

@@ -141,6 +141,10 @@ if [ -x "$DRAPE" ]; then
 	expect 2 "--metrics: cannot write '/proc/m.json'" -- "$DRAPE" "$SCENE" --metrics /proc/m.json --steps 1
 	expect 2 "--metrics: cannot write '.*': it is a directory" -- "$DRAPE" "$SCENE" --metrics "$DATA" --steps 1
 	expect 2 "--png: " -- "$DRAPE" "$SCENE" --png "$TMP/afile/p.png" --steps 1
+	expect 2 "--png-zoom: '0,1,0' is not X,Y,Z,R .four comma-separated numbers in metres." -- "$DRAPE" "$SCENE" --png "$TMP/p.png" --png-zoom 0,1,0 --steps 1
+	expect 2 "--png-zoom: '0,1,nan,0.2' is not X,Y,Z,R .field 3 is not a finite number." -- "$DRAPE" "$SCENE" --png "$TMP/p.png" --png-zoom 0,1,nan,0.2 --steps 1
+	expect 2 "--png-zoom: '0,1,0,0' is not X,Y,Z,R .R must be in 0.01..10 m." -- "$DRAPE" "$SCENE" --png "$TMP/p.png" --png-zoom 0,1,0,0 --steps 1
+	expect 2 "--png-zoom: needs --png OUT.png" -- "$DRAPE" "$SCENE" --png-zoom 0,1,0,0.2 --steps 1
 	expect 2 "--frames: cannot write '.*afile': it exists and is not a directory" -- "$DRAPE" "$SCENE" --frames "$TMP/afile" --steps 1
 	BENCH="$(dirname "$FIT")/bodyfit-bench"
 	[ -x "$BENCH" ] && expect 2 "--out: cannot write '.*afile': it exists and is not a directory" -- "$BENCH" mvee --out "$TMP/afile"

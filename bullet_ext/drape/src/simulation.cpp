@@ -823,8 +823,8 @@ metrics::ContactOptions DrapeSimulation::contactOptions() const
 	switch (scene_.collider.kind)
 	{
 	case ColliderKind::Ellipsoids:
-		o.rule = metrics::ContactRule::NearEllipsoids;
-		o.distance = scene_.collider.skinOffset + 0.003;
+		o.rule = metrics::ContactRule::ColliderContacts;
+		o.collider = collider_;
 		break;
 	case ColliderKind::None:
 		o.rule = metrics::ContactRule::None;
@@ -833,6 +833,14 @@ metrics::ContactOptions DrapeSimulation::contactOptions() const
 		o.rule = metrics::ContactRule::RigidContacts;
 		break;
 	}
+	return o;
+}
+
+metrics::ContactOptions DrapeSimulation::nearUnionOptions() const
+{
+	metrics::ContactOptions o;
+	o.rule = metrics::ContactRule::NearEllipsoids;
+	o.distance = scene_.collider.skinOffset + 0.003;
 	return o;
 }
 
@@ -846,9 +854,11 @@ std::vector<double> DrapeSimulation::skinDistances(const std::vector<int>& nodes
 	return metrics::skinDistances(*cloth_, impl_->referenceAt(time_), nodes);
 }
 
-metrics::ContactMetrics DrapeSimulation::contacts() const
+metrics::ContactMetrics DrapeSimulation::contacts() const { return contacts(contactOptions()); }
+
+metrics::ContactMetrics DrapeSimulation::contacts(const metrics::ContactOptions& options) const
 {
-	return metrics::measureContacts(*cloth_, impl_->referenceAt(time_), contactOptions());
+	return metrics::measureContacts(*cloth_, impl_->referenceAt(time_), options);
 }
 
 metrics::EdgeCrossings DrapeSimulation::edgeCrossings() const
@@ -969,6 +979,15 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 	}
 	nlohmann::json j = runJson(sim, steps, stepMs, collisionMs);
 	j.update(metrics::toJson(metrics::ClothMetrics{last, sim.contacts()}));
+	if (sim.scene().collider.kind == ColliderKind::Ellipsoids)
+	{
+		// The contact rule before the collider's flags (issue 14): nodes near the union, kept so old numbers compare.
+		const metrics::ContactMetrics near = sim.contacts(sim.nearUnionOptions());
+		const auto gap = [&](double v) { return near.gap.count > 0 ? nlohmann::json(v) : nlohmann::json(nullptr); };
+		j["nodes_near_union"] = near.contactNodes;
+		j["mean_near_union_gap_m"] = gap(near.gap.mean);
+		j["p95_near_union_gap_m"] = gap(near.gap.p95);
+	}
 	const bool ellipsoids = start.insideEllipsoids >= 0;
 	j["nodes_inside_body_start"] = start.insideBody;
 	j["max_nodes_inside_body"] = extremes.maxInside;

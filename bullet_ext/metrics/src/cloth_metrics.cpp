@@ -4,6 +4,8 @@
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/statistics.h"
 
+#include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
+
 #include <BulletSoftBody/btSoftBody.h>
 
 #include <algorithm>
@@ -81,6 +83,22 @@ std::vector<int> nodesWithRigidContacts(const btSoftBody& cloth)
 	for (std::size_t i = 0; i < flag.size(); ++i)
 		if (flag[i])
 			nodes.push_back(int(i));
+	return nodes;
+}
+
+std::vector<int> nodesWithColliderContacts(const btSoftBody& cloth, const btEllipsoidClothCollider& collider)
+{
+	const btAlignedObjectArray<unsigned char>* flags = collider.getContactFlags(&cloth);
+	if (!flags)
+		return {};
+	if (flags->size() != cloth.m_nodes.size())
+		throw InvalidInputError("contact rule ColliderContacts: the collider's record has " +
+								std::to_string(flags->size()) + " nodes, the soft body " +
+								std::to_string(cloth.m_nodes.size()) + " (nodes added since its last substep)");
+	std::vector<int> nodes;
+	for (int i = 0; i < flags->size(); ++i)
+		if ((*flags)[i])
+			nodes.push_back(i);
 	return nodes;
 }
 
@@ -292,6 +310,10 @@ std::vector<int> contactNodes(const btSoftBody& cloth, const BodyReference& body
 		return nodesNearEllipsoids(cloth, body, options.distance);
 	case ContactRule::RigidContacts:
 		return nodesWithRigidContacts(cloth);
+	case ContactRule::ColliderContacts:
+		if (!options.collider)
+			throw InvalidInputError("contact rule ColliderContacts needs the collider (ContactOptions::collider)");
+		return nodesWithColliderContacts(cloth, *options.collider);
 	case ContactRule::None:
 		break;
 	}

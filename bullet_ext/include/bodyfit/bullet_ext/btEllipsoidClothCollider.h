@@ -178,6 +178,13 @@ public:
 	const btEllipsoidClothStats& getAccumulatedStats() const { return m_accumulatedStats; }
 	void resetStats() { m_accumulatedStats.reset(); }
 
+	/// The collider's contacts with `softBody` in the last substep it processed it, one flag per node (like
+	/// btSoftBody::m_rcontacts for Bullet's own contacts): non-zero for every node a response of that substep placed
+	/// on the surface, held there by friction or pushed out (ellipsoid or skin-field surface alike), 0 for the nodes
+	/// it left alone. Cleared at the start of every substep. 0 when the collider has not processed that soft body in
+	/// its last substep (not stepped by this collider's solver, added since, removed) or is detached.
+	const btAlignedObjectArray<unsigned char>* getContactFlags(const btSoftBody* softBody) const;
+
 	/// World-space ellipsoids at the body's current pose (as used in the last substep).
 	const btEllipsoidWorldCache& getWorldCache() const { return m_current; }
 

@@ -136,15 +136,20 @@ public:
 
 	/// Inside/NaN counts now (the inside-body test runs in the body frame against the original mesh).
 	ClothSample sample() const;
-	/// How contacts are counted: within skin offset + 3 mm of the ellipsoid union (ellipsoids collider), holding a
-	/// Bullet rigid contact after the last step (mesh-bvh, convex-hull-compound, ellipsoids-sdf), none for `none`.
+	/// How contacts are counted: the nodes bodyfit's collider flagged in its last substep (ellipsoids collider,
+	/// either surface: btEllipsoidClothCollider::getContactFlags), holding a Bullet rigid contact after the last step
+	/// (mesh-bvh, convex-hull-compound, ellipsoids-sdf), none for `none`.
 	metrics::ContactOptions contactOptions() const;
+	/// The union's neighbourhood: nodes within skin offset + 3 mm of the ellipsoid union or inside it (the contact
+	/// rule before the collider's flags; metrics JSON nodes_near_union).
+	metrics::ContactOptions nearUnionOptions() const;
 	/// Nodes counted as touching the body (contactOptions()).
 	std::vector<int> contactNodes() const;
 	/// Signed distance of each listed node to the body skin (negative inside the body mesh).
 	std::vector<double> skinDistances(const std::vector<int>& nodes) const;
-	/// Contact nodes and their gap to the skin now.
+	/// Contact nodes and their gap to the skin now (contactOptions(), or the rule given).
 	metrics::ContactMetrics contacts() const;
+	metrics::ContactMetrics contacts(const metrics::ContactOptions& options) const;
 	/// Cloth links crossing the body skin now (both ends outside, the segment through the mesh).
 	metrics::EdgeCrossings edgeCrossings() const;
 	/// Sparse-SDF cells currently cached by Bullet (0 for the ellipsoid collider, which needs none).

@@ -29,6 +29,7 @@
 #include <optional>
 #include <vector>
 
+class btEllipsoidClothCollider;
 class btSoftBody;
 
 namespace bodyfit::metrics
@@ -104,9 +105,14 @@ struct PenetrationCounts
 /// Which nodes touch the body.
 enum class ContactRule
 {
-	NearEllipsoids, ///< within ContactOptions::distance of the ellipsoid union (the ellipsoid collider's contacts)
+	/// Within ContactOptions::distance of the ellipsoid union (or inside it): the union's neighbourhood, which with
+	/// the tight skin surface also holds cloth hanging in the union's bulge off the skin (reported as nodes_near_union).
+	NearEllipsoids,
 	RigidContacts,  ///< holding a Bullet rigid contact (btSoftBody::m_rcontacts) after the last step: Bullet's paths
-	None,           ///< no contacts (no body collider)
+	/// Flagged by bodyfit's collider in its last substep (btEllipsoidClothCollider::getContactFlags): placed on the
+	/// surface, held there by friction or pushed out; the resting cloth the collider touches, in either surface mode.
+	ColliderContacts,
+	None, ///< no contacts (no body collider)
 };
 
 struct ContactOptions
@@ -115,6 +121,8 @@ struct ContactOptions
 	/// NearEllipsoids: largest signed distance to the union that still counts (metres); the scene runner uses the
 	/// collider's skin offset + 3 mm.
 	double distance = 0.005;
+	/// ColliderContacts: the collider whose contact flags are read (not owned).
+	const btEllipsoidClothCollider* collider = nullptr;
 };
 
 /// Signed gaps to the skin of the contact nodes, summarised (all 0 when count is 0).
@@ -153,8 +161,10 @@ struct ClothMetrics
 /// Inside/NaN counts now.
 PenetrationCounts measurePenetration(const btSoftBody& cloth, const BodyReference& body);
 
-/// Indices of the nodes the rule counts as touching the body (finite nodes only for NearEllipsoids).
-/// \throws InvalidInputError for NearEllipsoids on a body without ellipsoids, or a negative distance.
+/// Indices of the nodes the rule counts as touching the body (finite nodes only for NearEllipsoids). For
+/// ColliderContacts, none when the collider has no record of the soft body (it did not step it last substep).
+/// \throws InvalidInputError for NearEllipsoids on a body without ellipsoids, or a negative distance; for
+/// ColliderContacts without a collider, or a record whose size is not the soft body's node count.
 std::vector<int> contactNodes(const btSoftBody& cloth, const BodyReference& body, const ContactOptions& options);
 
 /// Signed distance to the skin of each listed node with a finite position (in list order; non-finite ones skipped).
