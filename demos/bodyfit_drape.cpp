@@ -254,6 +254,20 @@ void printSummary(const bodyfit::drape::Scene& scene, const bodyfit::drape::Drap
 					metrics["animation"]["loop"].get<bool>() ? "on" : "off",
 					metrics["body_skin_ms_per_step_median"].get<double>(),
 					metrics["body_write_ms_per_step_median"].get<double>());
+	if (metrics.contains("bone_field"))
+	{
+		const nlohmann::json& b = metrics["bone_field"];
+		std::printf("tight      %.1f%% of the tested nodes decided on the bind-pose field in a bone's frame, %lld by the "
+					"union (fallback)", 100.0 * b["field_share"].get<double>(), b["fallback_nodes"].get<long long>());
+		for (std::size_t k = 0; k < b["fallback_at"].size() && k < 4; ++k)
+		{
+			const nlohmann::json& w = b["fallback_at"][k];
+			std::printf("%s ellipsoid %d (%s, %s) %.0f%%", k == 0 ? ", most at" : ",", w["ellipsoid"].get<int>(),
+						w["mode"].get<std::string>().c_str(), w["bone"].get<std::string>().c_str(),
+						100.0 * w["share"].get<double>());
+		}
+		std::printf("\n");
+	}
 }
 
 /// --metrics (the JSON) and --frames (frames.json and animation.glb; the OBJ files were written while stepping).

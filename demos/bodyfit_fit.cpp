@@ -44,8 +44,8 @@ that let the ellipsoids follow every clip of the rig.
                          the skin between two ellipsoids (slivers stick out, cloth can rest inside the body)
   --no-skin-field        do not bake the skin field (by default OUT.skin is written next to OUT.json: a
                          narrow-band signed distance field of the skin the collider can contact tightly,
-                         fitting/include/bodyfit/fitting/skin_field.h; not baked for a rigged file, whose
-                         skin moves)
+                         fitting/include/bodyfit/fitting/skin_field.h; for a rigged file, of its bind
+                         pose: the collider reads it in the frames of the bones)
   --skin-voxel M         skin field voxel size in metres (default 0.005; 0.0005 - 0.05)
   --skin-clamp M         skin field band: distances are kept within M metres of the skin (default 0.012;
                          at least 2 voxels, at most 0.1)
@@ -276,8 +276,8 @@ int main(int argc, char** argv)
 			fit.setTiming("skinning.bind", std::chrono::duration<double, std::milli>(bindTime).count());
 		}
 
-		if (skinField && !rig)
-			bakeSkinField(mesh, skinOptions, fit);
+		if (skinField)
+			bakeSkinField(mesh, skinOptions, fit); // a rig's bind mesh with the bind-pose fit
 
 		// Outputs.
 		bodyfit_cli::ensureParentDirectory(outPath);
@@ -298,7 +298,7 @@ int main(int argc, char** argv)
 		if (!segmentsPath.empty())
 			extraOutputs += (extraOutputs.empty() ? "" : ", ") + segmentsPath;
 		printSummary(result.loaded, fit, regionSummary, outPath, extraOutputs);
-		printSkinField(fit, outPath, !skinField ? "--no-skin-field" : "a rigged body's skin moves; the field is static");
+		printSkinField(fit, outPath, "--no-skin-field");
 		if (rig)
 			std::cout << "  skinning  rig with " << rig->boneCount() << " bones, " << rig->clips.size()
 					  << " clip(s): bind pose fitted, " << fit.skinning->vertexPoints + fit.skinning->coverPoints

@@ -75,6 +75,8 @@ void btEllipsoidClothStats::reset()
 	m_minSkinField = SIMD_INFINITY;
 	m_skinFallbacks = 0;
 	m_skinMarchLimits = 0;
+	m_boneFieldNodes = 0;
+	m_boneFieldFallbacks = 0;
 }
 
 void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
@@ -93,6 +95,8 @@ void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
 	m_minSkinField = btMin(m_minSkinField, other.m_minSkinField);
 	m_skinFallbacks += other.m_skinFallbacks;
 	m_skinMarchLimits += other.m_skinMarchLimits;
+	m_boneFieldNodes += other.m_boneFieldNodes;
+	m_boneFieldFallbacks += other.m_boneFieldFallbacks;
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -181,7 +185,9 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_substepCount(1),
 	  m_substepDt(btScalar(0)),
 	  m_contactFlags(0),
-	  m_contactNodeBase(0)
+	  m_contactNodeBase(0),
+	  m_boneFields(false),
+	  m_skinGroup(-1)
 {
 	m_previousPose.setIdentity();
 	m_currentPose.setIdentity();
@@ -350,9 +356,11 @@ void btEllipsoidClothColliderCore::updateWorldCache(bool continuing)
 	m_sweepOnGrid = m_sweeping && !m_moving && m_current.getGridBuilds() == builds &&
 					m_current.getGridMargin() > btScalar(0) && !m_sweep.hasUnbounded();
 	m_sweepMaxPath = m_current.getCellSize();
-	// A field is baked for one shape of the body: while the ellipsoids move by themselves (a skinned body) it no
-	// longer describes the skin, and the sweep's ellipsoid response decides contact.
-	m_skinGeometry.begin(m_sweeping ? 0 : activeSkinField(), btMax(m_config.m_skinOffset, btScalar(0)), m_currentPose);
+	// A field is baked for one shape of the body: while the ellipsoids move by themselves it no longer describes the
+	// skin in the body frame (a skinned body's bind-pose field is read in its bones' frames, prepareBoneFields).
+	m_skinGeometry.begin(m_sweeping || m_compound->getBindPose() ? 0 : activeSkinField(),
+						 btMax(m_config.m_skinOffset, btScalar(0)), m_currentPose);
+	prepareBoneFields(); // a skinned body: the field of the bind pose in each bone's frame (btSkinFieldResponse.cpp)
 }
 
 void btEllipsoidClothColliderCore::endSubstep()
@@ -578,6 +586,8 @@ bool btEllipsoidClothColliderCore::collideSweptNode(btSoftBody::Node& node, cons
 	if (nc == 0)
 		return false;
 	++m_lastStats.m_nodesTested;
+	if (m_boneFields && collideOnBoneField(node, q, nc, substep))
+		return false; // decided on the bind field in the candidates' bone frame: no pocket test (it rests in the union)
 	// 2. Narrow phase in each candidate's moving frame: u_q = W0 (q - c0) -> u_x = W1 (x - c1).
 	btPathEntry entry;
 	const btPathEnds ends(q, x);

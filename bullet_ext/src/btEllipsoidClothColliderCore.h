@@ -57,6 +57,8 @@ public:
 	const btAlignedObjectArray<unsigned char>* contactFlags(const btSoftBody* softBody) const;
 	/// The skin field of tight mode for the current Config (getActiveSkinField), or 0. btSkinFieldResponse.cpp.
 	const btSkinDistanceField* activeSkinField() const;
+	/// getBoneFieldFallbacks: per ellipsoid, nodes it sent to the union response (skinned bodies, tight mode).
+	const btAlignedObjectArray<int>& boneFieldFallbacks() const { return m_boneFallbacks; }
 
 private:
 	/// Everything one collide() call shares between its nodes.
@@ -141,6 +143,21 @@ private:
 	/// Drops the records of soft bodies the substep did not process (removed from the world).
 	void dropStaleContactRecords();
 
+	// Tight mode on a skinned body (btSkinFieldResponse.cpp, "bone fields"): the field of the bind pose, read in the
+	// frame of the bone that carries every ellipsoid near a node.
+	bool m_boneFields;        ///< this substep sweeps and the compound has a field, a bind pose and bone frames
+	int m_skinGroup;          ///< the frame collideOnSkin works in: -1 the body's, else a bone group of this substep
+	btEllipsoidWorldCache m_bindCache;               ///< the bind pose's ellipsoids (compound frame)
+	btAlignedObjectArray<int> m_frameBones[2];       ///< per ellipsoid: its bone in the previous / current substep
+	btAlignedObjectArray<btTransform> m_frames[2];   ///< bind -> current body frame, previous / current substep
+	btAlignedObjectArray<int> m_frameGroup;          ///< per ellipsoid: its bone group this substep, -1 none
+	btAlignedObjectArray<int> m_bindCandidates;
+	btAlignedObjectArray<btSkinFieldGeometry> m_groupGeometry; ///< per group: the field, bind frame -> world now
+	btAlignedObjectArray<btTransform> m_groupPrevious;         ///< per group: bind frame -> world, previous substep
+	btAlignedObjectArray<int> m_groupBone;                     ///< per group: its first bone
+	btAlignedObjectArray<int> m_groupFirst;                    ///< per group: its first ellipsoid
+	btAlignedObjectArray<int> m_boneFallbacks;  ///< accumulated per ellipsoid: nodes it sent to the union response
+
 	btTransform interpolatedKinematicPose();
 	/// Moves the body pose forward by one substep (m_previousPose, m_currentPose, m_delta).
 	void advanceBodyPose(bool continuing);
@@ -201,6 +218,25 @@ private:
 	/// \return the field at the node's final position.
 	btScalar pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb, const btVector3& center,
 					   const Substep& substep);
+	/// The field geometry collideOnSkin works with (m_skinGroup).
+	const btSkinFieldGeometry& skinGeometry() const
+	{
+		return m_skinGroup < 0 ? m_skinGeometry : m_groupGeometry[m_skinGroup];
+	}
+	/// The body's surface velocity at a world point of the field's surface in the frame of m_skinGroup.
+	btVector3 skinSurfaceVelocity(const btVector3& worldPoint, btScalar dt) const;
+	/// Once per substep after the world cache: the bone frames of this substep, their groups (bones whose motion
+	/// agrees within the field's tolerance) and a field geometry per group (m_boneFields).
+	void prepareBoneFields();
+	/// Groups the rigid ellipsoids of this substep by the motion of their bones (m_frameGroup, m_groupGeometry).
+	void groupBoneFrames(const btSkinDistanceField& field);
+	/// The group of every candidate, or -1 (the first candidate of another group or not rigid gets the fallback).
+	int candidateGroup(const int* cand, int nc);
+	/// Every bind ellipsoid whose box meets the bind-frame path a -> b grown by `band` is rigid in group g.
+	bool bindNeighboursIn(int g, const btVector3& a, const btVector3& b, btScalar band);
+	/// A node of a sweeping substep with nc swept candidates: decided on the bind field in the frame of their bone
+	/// group when they share one and the checks hold (true), else nothing changes and the union response decides.
+	bool collideOnBoneField(btSoftBody::Node& node, const btVector3& q, int nc, const Substep& substep);
 	/// respondVelocity with the field's normal: the velocity rule, the slide along the field, the cap, the reaction.
 	/// `value` (the field at the node) follows the slide.
 	bool respondOnSkin(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface, const btVector3& start,

@@ -82,8 +82,65 @@ btEllipsoidCompoundShape::btEllipsoidCompoundShape(btScalar childMargin, bool dy
 	  m_childMargin(childMargin),
 	  m_analyticRevision(0),
 	  m_skinField(0),
-	  m_ownsSkinField(false)
+	  m_ownsSkinField(false),
+	  m_bindPose(0),
+	  m_ownsBindPose(false)
 {
+}
+
+bool btEllipsoidCompoundShape::setBindPose(const btEllipsoidCompoundShape* bindPose, bool owned, const char** error)
+{
+	const char* e = 0;
+	if (bindPose && (bindPose == this || bindPose->getNumEllipsoids() != getNumEllipsoids()))
+		e = "btEllipsoidCompoundShape::setBindPose: the bind pose must be another compound with the same ellipsoid count";
+	if (error)
+		*error = e;
+	if (e)
+		return false;
+	if (m_ownsBindPose && m_bindPose != bindPose)
+		delete m_bindPose;
+	m_bindPose = bindPose;
+	m_ownsBindPose = bindPose && owned;
+	m_frameBones.clear();
+	m_bindToCurrent.clear();
+	return true;
+}
+
+bool btEllipsoidCompoundShape::setBoneFrames(int count, const int* bones, const btTransform* bindToCurrent,
+											 const char** error)
+{
+	const char* e = 0;
+	if (count != getNumEllipsoids() || count <= 0)
+		e = "btEllipsoidCompoundShape::setBoneFrames: count differs from getNumEllipsoids()";
+	else if (!bones || !bindToCurrent)
+		e = "btEllipsoidCompoundShape::setBoneFrames: bones and bindToCurrent must not be null";
+	for (int i = 0; !e && i < count; ++i)
+	{
+		if (bones[i] < 0)
+			continue;
+		// A rotation: R^T R = I and det R = 1 (the field's distances are only carried by a rigid motion).
+		const btMatrix3x3& r = bindToCurrent[i].getBasis();
+		const btMatrix3x3 rtr = r.transposeTimes(r);
+		btScalar worst = btFabs(r.determinant() - btScalar(1));
+		for (int a = 0; a < 3; ++a)
+			for (int b = 0; b < 3; ++b)
+				worst = btMax(worst, btFabs(rtr[a][b] - (a == b ? btScalar(1) : btScalar(0))));
+		if (!(worst <= btScalar(1e-4)) || !(bindToCurrent[i].getOrigin().length2() < BT_LARGE_FLOAT))
+			e = "btEllipsoidCompoundShape::setBoneFrames: a rigid ellipsoid's motion is not a finite rotation and "
+				"translation (use bone -1 for it)";
+	}
+	if (error)
+		*error = e;
+	if (e)
+		return false;
+	m_frameBones.resize(count);
+	m_bindToCurrent.resize(count, btTransform::getIdentity());
+	for (int i = 0; i < count; ++i)
+	{
+		m_frameBones[i] = bones[i];
+		m_bindToCurrent[i] = bones[i] >= 0 ? bindToCurrent[i] : btTransform::getIdentity();
+	}
+	return true;
 }
 
 bool btEllipsoidCompoundShape::setSkinField(const btSkinDistanceField* field, bool owned, const char** error)
@@ -110,6 +167,8 @@ btEllipsoidCompoundShape::~btEllipsoidCompoundShape()
 {
 	if (m_ownsSkinField)
 		delete m_skinField;
+	if (m_ownsBindPose)
+		delete m_bindPose;
 	for (int i = 0; i < m_children.size(); ++i)
 	{
 		btCollisionShape* child = m_children[i].m_childShape;
@@ -124,6 +183,8 @@ btEllipsoidCompoundShape::~btEllipsoidCompoundShape()
 int btEllipsoidCompoundShape::addEllipsoid(const btVector3& center, const btMatrix3x3& basis, const btVector3& semiAxes)
 {
 	const int index = m_ellipsoids.size();
+	m_frameBones.clear(); // a new ellipsoid has no frame yet
+	m_bindToCurrent.clear();
 	m_unscaledCenters.push_back(center);
 	m_unscaledBases.push_back(sanitizeBasis(basis));
 	btEllipsoidShape probe(semiAxes, m_childMargin); // sanitises the semi-axes the same way the child does
@@ -192,6 +253,8 @@ void btEllipsoidCompoundShape::removeEllipsoid(int index)
 	m_unscaledBases[index] = m_unscaledBases[last];
 	m_unscaledSemiAxes[index] = m_unscaledSemiAxes[last];
 	m_ellipsoids.pop_back();
+	m_frameBones.clear(); // the indices changed: the frames no longer match
+	m_bindToCurrent.clear();
 	m_unscaledCenters.pop_back();
 	m_unscaledBases.pop_back();
 	m_unscaledSemiAxes.pop_back();

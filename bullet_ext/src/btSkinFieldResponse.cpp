@@ -211,11 +211,22 @@ const btSkinDistanceField* btEllipsoidClothColliderCore::activeSkinField() const
 	return m_compound->getSkinField();
 }
 
+btVector3 btEllipsoidClothColliderCore::skinSurfaceVelocity(const btVector3& worldPoint, btScalar dt) const
+{
+	if (m_skinGroup < 0)
+		return bodyVelocityAt(worldPoint, -1, dt);
+	if (!(dt > btScalar(0)))
+		return btVector3(0, 0, 0);
+	// Where the bind-frame point under worldPoint was at the start of the substep: carried by the group's motion.
+	const btVector3 bindPoint = m_groupGeometry[m_skinGroup].toBody() * worldPoint;
+	return (worldPoint - m_groupPrevious[m_skinGroup] * bindPoint) / dt;
+}
+
 bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const btVector3& q, const Substep& substep,
 												 btScalar& zeta)
 {
 	zeta = SIMD_INFINITY;
-	const btSkinFieldGeometry& geometry = m_skinGeometry;
+	const btSkinFieldGeometry& geometry = skinGeometry();
 	const btVector3 qb = geometry.toBody() * q, xb = geometry.toBody() * node.m_x;
 	btSkinPathHit hit;
 	geometry.march(qb, xb, hit);
@@ -248,7 +259,7 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 btScalar btEllipsoidClothColliderCore::pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb,
 													 const btVector3& center, const Substep& substep)
 {
-	const btSkinFieldGeometry& geometry = m_skinGeometry;
+	const btSkinFieldGeometry& geometry = skinGeometry();
 	// The body moved into the node (or it started within the skin). If the solve already brought it out, keep it.
 	btScalar value = geometry.field()->distance(xb);
 	if (value >= geometry.offset())
@@ -282,7 +293,7 @@ bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const b
 {
 	btNodeContacts contacts;
 	contacts.add(normal);
-	const btVector3 bodyVelocity = bodyVelocityAt(surface, -1, substep.m_dt);
+	const btVector3 bodyVelocity = skinSurfaceVelocity(surface, substep.m_dt);
 	const btVector3 before = node.m_v;
 	const btVector3 relative = node.m_v - bodyVelocity;
 	btVector3 vr = btRelativeVelocityAfterContact(m_config.m_velocityRule, substep.m_friction, relative, contacts,
@@ -291,10 +302,181 @@ bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const b
 	if (remaining > btScalar(0) && !stopped)
 	{
 		// The rest of the substep along the surface, with the new velocity.
-		const btSkinFieldGeometry& geometry = m_skinGeometry;
+		const btSkinFieldGeometry& geometry = skinGeometry();
 		const btVector3 displacement = geometry.toBody().getBasis() * (vr * (remaining * substep.m_dt));
 		node.m_x = geometry.toWorld() * geometry.slide(geometry.toBody() * node.m_x, displacement, value);
 	}
 	setContactVelocity(node, vr, normal, start, bodyVelocity, before, surface, substep.m_dt);
 	return stopped;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Skinned bodies: the bind-pose field in the frame of a bone (members of btEllipsoidClothColliderCore)
+//
+// The field is baked once on the bind mesh. A rigid ellipsoid moves with its bone's skinning motion T (a rotation and
+// a translation, btEllipsoidCompoundShape::setBoneFrames), and so does every skin point it owns (all its bound points
+// depend on that bone alone, bodyfit/fitting/skinned_fit.h). A node is decided on the field at its back-mapped
+// position T^-1 x when (1) every swept candidate of its path is rigid in one bone group: no other skin comes within
+// the skin offset of the path during the substep, and (2) every bind ellipsoid whose box meets the back-mapped path
+// grown by the contact band is rigid in that group: each skin point lies in the bind ellipsoid of the cluster that owns
+// it, so within that band the bind field measures only skin that moved with the group (no skin of a neighbouring
+// cluster that has moved since the bake). The path q -> x back-mapped through the previous and the current T is the
+// path in the bone's frame, where that skin is still: the static tight response runs there and its result is mapped
+// forward. When the response moved the node (placement, slide, push-out), (1) and (2) are checked again at its end
+// (else it is undone). Every other node keeps the union response of the sweep: the fallback, counted per ellipsoid.
+
+const btAlignedObjectArray<int>& btEllipsoidClothCollider::getBoneFieldFallbacks() const
+{
+	return static_cast<const btEllipsoidClothColliderCore*>(this)->boneFieldFallbacks();
+}
+
+void btEllipsoidClothColliderCore::prepareBoneFields()
+{
+	m_boneFields = false;
+	m_skinGroup = -1;
+	const btSkinDistanceField* field = activeSkinField();
+	const btEllipsoidCompoundShape* bind = m_compound->getBindPose();
+	const int n = m_compound->getNumEllipsoids();
+	const bool frames = field && bind && m_compound->hasBoneFrames() && bind->getNumEllipsoids() == n;
+	const bool hadFrames = n > 0 && m_frameBones[1].size() == n;
+	m_frameBones[0].copyFromArray(m_frameBones[1]);
+	m_frames[0].copyFromArray(m_frames[1]);
+	m_frameBones[1].resize(frames ? n : 0);
+	m_frames[1].resize(frames ? n : 0, btTransform::getIdentity());
+	for (int i = 0; frames && i < n; ++i)
+	{
+		m_frameBones[1][i] = m_compound->getFrameBone(i);
+		m_frames[1][i] = m_compound->getBindToCurrent(i);
+	}
+	if (!frames || !hadFrames || !m_sweeping)
+		return;
+	m_bindCache.update(bind, btTransform::getIdentity());
+	if (m_boneFallbacks.size() != n)
+		m_boneFallbacks.resize(n, 0);
+	groupBoneFrames(*field);
+	m_boneFields = m_groupGeometry.size() > 0;
+}
+
+namespace
+{
+/// An upper bound of |a p - b p| over the ball of `radius` about c.
+btScalar frameDeviation(const btTransform& a, const btTransform& b, const btVector3& c, btScalar radius)
+{
+	btScalar rotation2 = btScalar(0); // Frobenius norm of the basis difference (>= its spectral norm)
+	for (int r = 0; r < 3; ++r)
+		rotation2 += (a.getBasis()[r] - b.getBasis()[r]).length2();
+	return btSqrt(rotation2) * radius + (a * c - b * c).length();
+}
+} // namespace
+
+void btEllipsoidClothColliderCore::groupBoneFrames(const btSkinDistanceField& field)
+{
+	// Bones that move alike share a group: deciding on one bone's frame for skin that moves with another displaces
+	// that skin by at most the deviation of the two motions over the bind union, so a deviation within the tolerance
+	// the tight response already allows below the offset (skinFieldTolerance) keeps its guarantee up to twice that.
+	const btScalar tolerance = skinFieldTolerance(field);
+	const btVector3 lo = m_bindCache.getAabbMin(), hi = m_bindCache.getAabbMax();
+	const btVector3 c = (lo + hi) * btScalar(0.5);
+	const btScalar radius = (hi - lo).length() * btScalar(0.5);
+	const int n = m_frameBones[1].size();
+	m_frameGroup.resize(n);
+	m_groupGeometry.resize(0);
+	m_groupPrevious.resize(0);
+	m_groupBone.resize(0);
+	m_groupFirst.resize(0);
+	const btScalar offset = btMax(m_config.m_skinOffset, btScalar(0));
+	for (int i = 0; i < n; ++i)
+	{
+		m_frameGroup[i] = -1;
+		const int bone = m_frameBones[1][i];
+		if (bone < 0 || m_frameBones[0][i] != bone)
+			continue;
+		int g = 0;
+		for (; g < m_groupBone.size(); ++g)
+		{
+			const int first = m_groupFirst[g];
+			if (m_groupBone[g] == bone ||
+				(frameDeviation(m_frames[0][first], m_frames[0][i], c, radius) <= tolerance &&
+				 frameDeviation(m_frames[1][first], m_frames[1][i], c, radius) <= tolerance))
+				break;
+		}
+		if (g == m_groupBone.size())
+		{
+			m_groupBone.push_back(bone);
+			m_groupFirst.push_back(i);
+			m_groupPrevious.push_back(m_previousPose * m_frames[0][i]);
+			m_groupGeometry.push_back(btSkinFieldGeometry());
+			m_groupGeometry[g].begin(&field, offset, m_currentPose * m_frames[1][i]);
+		}
+		m_frameGroup[i] = g;
+	}
+}
+
+int btEllipsoidClothColliderCore::candidateGroup(const int* cand, int nc)
+{
+	const int g = m_frameGroup[cand[0]];
+	int other = g < 0 ? cand[0] : -1;
+	for (int j = 1; j < nc && other < 0; ++j)
+		if (m_frameGroup[cand[j]] != g)
+			other = cand[j];
+	if (other < 0)
+		return g;
+	++m_boneFallbacks[other];
+	return -1;
+}
+
+bool btEllipsoidClothColliderCore::bindNeighboursIn(int g, const btVector3& a, const btVector3& b, btScalar band)
+{
+	const btEllipsoidWorldCache::PathQuery query(m_bindCache, band);
+	m_bindCandidates.resize(m_bindCache.size());
+	const int nb = query.candidates(a, b, &m_bindCandidates[0]);
+	for (int k = 0; k < nb; ++k)
+		if (m_frameGroup[m_bindCandidates[k]] != g)
+		{
+			++m_boneFallbacks[m_bindCandidates[k]];
+			return false;
+		}
+	return true;
+}
+
+bool btEllipsoidClothColliderCore::collideOnBoneField(btSoftBody::Node& node, const btVector3& q, int nc,
+													  const Substep& substep)
+{
+	// (A dynamic body would take reaction impulses that an undone response could not take back.)
+	const int g = m_dynamicBody ? -1 : candidateGroup(substep.m_candidates, nc);
+	if (g < 0)
+	{
+		++m_lastStats.m_boneFieldFallbacks;
+		return false;
+	}
+	const btSkinFieldGeometry& geometry = m_groupGeometry[g];
+	const btScalar band = substep.m_band; // within it a placed node touches a surface (contactBand)
+	const btVector3 qb = m_groupPrevious[g].invXform(q); // previous world -> bind frame
+	if (!bindNeighboursIn(g, qb, geometry.toBody() * node.m_x, band))
+	{
+		++m_lastStats.m_boneFieldFallbacks;
+		return false;
+	}
+	const btVector3 x0 = node.m_x, v0 = node.m_v;
+	const btEllipsoidClothStats before = m_lastStats;
+	m_skinGroup = g;
+	btScalar zeta;
+	collideOnSkin(node, geometry.toWorld() * qb, substep, zeta); // the start carried with the group
+	m_skinGroup = -1;
+	if (!(node.m_x == x0))
+	{
+		// Checks (1) and (2) at the node's end: the response may have moved it beyond the path.
+		const int nEnd = substep.m_contactQuery.candidates(node.m_x, node.m_x, substep.m_contactCandidates);
+		const btVector3 xb = geometry.toBody() * node.m_x;
+		if ((nEnd > 0 && candidateGroup(substep.m_contactCandidates, nEnd) != g) || !bindNeighboursIn(g, xb, xb, band))
+		{
+			node.m_x = x0;
+			node.m_v = v0;
+			m_lastStats = before;
+			++m_lastStats.m_boneFieldFallbacks;
+			return false;
+		}
+	}
+	++m_lastStats.m_boneFieldNodes;
+	return true;
 }

@@ -302,6 +302,7 @@ void SkinnedBody::pose(const AnimationClip& clip, double t)
 
 void SkinnedBody::update(const std::vector<Eigen::Affine3d>& skinning)
 {
+	skinning_ = skinning;
 	skinVertices(*rig_, skinning, skinned_);
 	rows_.resize(std::size_t(skinned_.rows())); // row-major copy: the point pass reads whole vertices
 	for (Eigen::Index v = 0; v < skinned_.rows(); ++v)

@@ -73,7 +73,21 @@ struct AnimatedRun
 	int nan = 0;
 	double maxEllipsoidDepth = 0.0;
 	double lastClipTime = 0.0;
+	bool tight = false;           ///< the scene's surface: the tight skin surface (default) or the ellipsoids
+	long long fieldNodes = 0;     ///< tested nodes decided on the bind-pose field in a bone's frame (tight)
+	long long fallbackNodes = 0;  ///< tested nodes the union response decided (tight)
 };
+
+/// The collider's own guarantee on its surface: on the ellipsoids no node inside an ellipsoid beyond float rounding of
+/// positions about 1 m from the origin (ulp 1.2e-7 m); on the tight surface nodes rest inside the union, and the bind
+/// field (in the bones' frames) decides some of them, the union response the others (joints).
+void checkSurface(const AnimatedRun& r)
+{
+	if (!r.tight)
+		CHECK(r.maxEllipsoidDepth < 1e-6);
+	else if (r.fieldNodes + r.fallbackNodes > 0) // (a cloth dropped from above may not have reached the body yet)
+		CHECK(r.fieldNodes > 0);
+}
 
 AnimatedRun runAnimated(Scene scene, int steps)
 {
@@ -81,9 +95,12 @@ AnimatedRun runAnimated(Scene scene, int steps)
 	const BodyData body = loadBody(scene);
 	DrapeSimulation sim(scene, body);
 	AnimatedRun r;
+	r.tight = scene.collider.tightSurface;
 	for (int k = 1; k <= steps; ++k)
 	{
-		sim.step();
+		const StepStats st = sim.step();
+		r.fieldNodes += st.boneFieldNodes;
+		r.fallbackNodes += st.boneFieldFallbacks;
 		if (k % 5 == 0 || k == steps)
 		{
 			const ClothSample s = sim.sample();
@@ -323,7 +340,7 @@ TEST_CASE("bundled animated scenes: 0 nodes inside the skinned body at every sam
 		CHECK(r.samples == c.steps / 5);
 		CHECK(r.maxInside == 0);
 		CHECK(r.nan == 0);
-		CHECK(r.maxEllipsoidDepth < 1e-6); // float rounding of positions about 1 m from the origin (ulp 1.2e-7 m)
+		checkSurface(r);
 	}
 }
 
@@ -336,7 +353,7 @@ TEST_CASE("a fast clip: the walk at 3x speed keeps 0 nodes inside the skinned bo
 	CHECK(r.lastClipTime == Approx(3.0).margin(1e-9));
 	CHECK(r.maxInside == 0);
 	CHECK(r.nan == 0);
-	CHECK(r.maxEllipsoidDepth < 1e-6);
+	checkSurface(r);
 }
 
 TEST_CASE("another body: male_young's skirt on its own rig, the walk at 2x from mid-clip, looping",
@@ -353,7 +370,7 @@ TEST_CASE("another body: male_young's skirt on its own rig, the walk at 2x from 
 	CHECK(r.lastClipTime == Approx(1.0 + 2.0 * 80.0 / 120.0).margin(1e-9));
 	CHECK(r.maxInside == 0);
 	CHECK(r.nan == 0);
-	CHECK(r.maxEllipsoidDepth < 1e-6);
+	checkSurface(r);
 }
 
 namespace
@@ -420,5 +437,6 @@ TEST_CASE("a faster, deeper clip than the bundled ones: the skirt under +-60 deg
 	CHECK(maxKneeTravel > 0.4); // the clip is deep: a foot swings by more than 40 cm
 	CHECK(maxInside == 0);
 	CHECK(nan == 0);
-	CHECK(maxDepth < 1e-6);
+	if (!scene.collider.tightSurface) // the tight surface rests nodes inside the union (checkSurface)
+		CHECK(maxDepth < 1e-6);
 }

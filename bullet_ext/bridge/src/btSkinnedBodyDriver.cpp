@@ -149,8 +149,61 @@ void btSkinnedBodyDriver::writeCompound()
 	const char* why = 0;
 	if (n > 0 && !m_compound->setEllipsoids(n, &m_centers[0], &m_bases[0], &m_semiAxes[0], &why))
 		throw InvalidInputError(std::string("btSkinnedBodyDriver: ") + why);
+	if (n > 0 && m_compound->getBindPose())
+		writeBoneFrames();
 	m_stats.lastCompoundSeconds = btSecondsSince(t0);
 	m_stats.compoundSeconds += m_stats.lastCompoundSeconds;
+}
+
+void btSkinnedBodyDriver::setFrameTolerance(double metres)
+{
+	if (!(metres >= 0.0) || !std::isfinite(metres))
+		throw InvalidInputError("btSkinnedBodyDriver: the frame tolerance must be a finite length >= 0 (metres)");
+	m_frameTolerance = metres;
+}
+
+void btSkinnedBodyDriver::writeBoneFrames()
+{
+	const std::vector<Eigen::Affine3d>& skinning = m_body->skinning();
+	const int n = int(m_body->ellipsoids().size());
+	m_frameBones.resize(n);
+	m_bindToCurrent.resize(n, btTransform::getIdentity());
+	for (int i = 0; i < n; ++i)
+	{
+		const int bone = m_body->dominantBone(i);
+		m_frameBones[i] = -1;
+		if (std::size_t(bone) >= skinning.size())
+			continue;
+		// Only a rigid skinning matrix carries distances: a scaled or sheared bone keeps the union response.
+		const Eigen::Affine3d& s = skinning[std::size_t(bone)];
+		const Eigen::Matrix3d r = s.linear();
+		if (!((r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() <= 1e-6) || !(r.determinant() > 0))
+			continue;
+		if (m_body->mode(i) != EllipsoidMotion::Rigid && !movesWithBone(i, bone, skinning))
+			continue;
+		m_frameBones[i] = bone;
+		m_bindToCurrent[i] = btTransform(toBt(r), toBt(Eigen::Vector3d(s.translation())));
+	}
+	const char* why = 0;
+	if (!m_compound->setBoneFrames(n, &m_frameBones[0], &m_bindToCurrent[0], &why))
+		throw InvalidInputError(std::string("btSkinnedBodyDriver: ") + why);
+}
+
+bool btSkinnedBodyDriver::movesWithBone(int j, int bone, const std::vector<Eigen::Affine3d>& skinning) const
+{
+	// A skinned point v = sum_i w_i S_i v_bind (weights summing to 1) is within max_i |S_i v_bind - S_b v_bind| of
+	// S_b v_bind, and over the ball (c, r) that holds the bind points (the bind ellipsoid's centre and largest
+	// semi-axis) |S_i p - S_b p| <= |L_i - L_b|_F r + |S_i c - S_b c|.
+	const Ellipsoid& e = m_body->bindEllipsoid(j);
+	const double r = e.radii.maxCoeff();
+	const Eigen::Affine3d& sb = skinning[std::size_t(bone)];
+	for (int i : m_body->bones(j))
+	{
+		const Eigen::Affine3d& si = skinning[std::size_t(i)];
+		if ((si.linear() - sb.linear()).norm() * r + (si * e.center - sb * e.center).norm() > m_frameTolerance)
+			return false;
+	}
+	return true;
 }
 
 void btSkinnedBodyDriver::writeMesh()

@@ -263,6 +263,7 @@ BodyData loadAnimatedBody(const Scene& scene, const LoadOptions& lo, const std::
 	body.loadWarnings = data->rig->report.warnings;
 	for (const FittedEllipsoid& e : data->fit.ellipsoids)
 		body.ellipsoids.push_back(e.ellipsoid);
+	body.skinField = data->fit.skinField; // a fit file's field of the bind pose, if it has one
 	body.animation = std::move(data);
 	return body;
 }
@@ -312,8 +313,8 @@ BodyData loadStaticBody(const Scene& scene, const LoadOptions& lo, const std::st
 /// scene's skin offset (skin_field.h; about 0.1 s for a 13k-vertex body).
 void ensureSkinField(const Scene& scene, BodyData& body)
 {
-	if (scene.collider.kind != ColliderKind::Ellipsoids || !scene.collider.tightSurface || body.animation ||
-		body.skinField || body.ellipsoids.empty())
+	if (scene.collider.kind != ColliderKind::Ellipsoids || !scene.collider.tightSurface || body.skinField ||
+		body.ellipsoids.empty())
 		return;
 	SkinFieldOptions options;
 	options.skinOffset = scene.collider.skinOffset;
@@ -329,9 +330,10 @@ BodyData loadBody(const Scene& scene, const std::string& meshOverride, const std
 	LoadOptions lo;
 	lo.up = scene.body.up;
 	lo.scale = scene.body.scale;
-	if (scene.body.animation)
-		return loadAnimatedBody(scene, lo, meshOverride, ellipsoidOverride);
-	BodyData body = loadStaticBody(scene, lo, meshOverride, ellipsoidOverride);
+	// An animated body's field is baked on its bind mesh with the bind ellipsoids: the collider reads it in the
+	// frames of the bones (btEllipsoidCompoundShape::setBindPose).
+	BodyData body = scene.body.animation ? loadAnimatedBody(scene, lo, meshOverride, ellipsoidOverride)
+										 : loadStaticBody(scene, lo, meshOverride, ellipsoidOverride);
 	ensureSkinField(scene, body);
 	return body;
 }
@@ -496,8 +498,6 @@ std::string DrapeSimulation::Impl::attachSkinField(const Scene& scene, const Bod
 {
 	if (!scene.collider.tightSurface)
 		return "ellipsoid surface (paper response)";
-	if (body.animation)
-		return "ellipsoid surface (an animated body has no skin field: its skin moves)";
 	if (!body.skinField)
 		return "ellipsoid surface (no skin field)";
 	std::unique_ptr<btSkinDistanceField> field = createSkinDistanceField(*body.skinField);
@@ -505,9 +505,18 @@ std::string DrapeSimulation::Impl::attachSkinField(const Scene& scene, const Bod
 	if (!ellipsoidCompound->setSkinField(field.get(), true, &why))
 		throw InvalidInputError(std::string("skin field: ") + why);
 	field.release(); // owned by the compound now
-	char buf[160];
-	std::snprintf(buf, sizeof buf, "tight skin surface (skin field: voxel %.1f mm, %d bricks, max error %.2f mm)",
-				  body.skinField->voxel * 1e3, body.skinField->storedBricks(), body.skinField->maxError * 1e3);
+	if (body.animation)
+	{
+		// The field describes the bind pose: the bind ellipsoids go with it, the driver adds the bone frames.
+		std::unique_ptr<btEllipsoidCompoundShape> bind = createEllipsoidCompound(body.ellipsoids);
+		if (!ellipsoidCompound->setBindPose(bind.get(), true, &why))
+			throw InvalidInputError(std::string("skin field: ") + why);
+		bind.release();
+	}
+	char buf[200];
+	std::snprintf(buf, sizeof buf, "tight skin surface (skin field%s: voxel %.1f mm, %d bricks, max error %.2f mm)",
+				  body.animation ? " of the bind pose, read in the bones' frames" : "", body.skinField->voxel * 1e3,
+				  body.skinField->storedBricks(), body.skinField->maxError * 1e3);
 	return buf;
 }
 
@@ -762,6 +771,8 @@ StepStats DrapeSimulation::step()
 		stats.colliderCpuSeconds = cs.m_collisionCpuSeconds;
 		stats.collisionSeconds += cs.m_collisionSeconds;
 		stats.collisionCpuSeconds += cs.m_collisionCpuSeconds;
+		stats.boneFieldNodes = cs.m_boneFieldNodes;
+		stats.boneFieldFallbacks = cs.m_boneFieldFallbacks;
 	}
 	if (im.skinnedEffect)
 	{
@@ -892,6 +903,38 @@ struct SampleExtremes
 	}
 };
 
+/// The tight surface on an animated body: the share of tested nodes decided on the bind-pose field in a bone's
+/// frame, and the ellipsoids whose nodes the union response decided most often (joints), with their bones.
+nlohmann::json boneFieldJson(const btEllipsoidClothCollider& collider, const SkinnedBody& body, long long fieldNodes,
+							 long long fallbackNodes)
+{
+	const long long tested = fieldNodes + fallbackNodes;
+	nlohmann::json j = {{"field_nodes", fieldNodes},
+						{"fallback_nodes", fallbackNodes},
+						{"field_share", tested > 0 ? double(fieldNodes) / double(tested) : 0.0}};
+	const btAlignedObjectArray<int>& counts = collider.getBoneFieldFallbacks();
+	std::vector<int> order;
+	long long total = 0;
+	for (int i = 0; i < counts.size(); ++i)
+	{
+		total += counts[i];
+		if (counts[i] > 0)
+			order.push_back(i);
+	}
+	std::sort(order.begin(), order.end(), [&](int a, int b) { return counts[a] > counts[b] || (counts[a] == counts[b] && a < b); });
+	nlohmann::json where = nlohmann::json::array();
+	for (std::size_t k = 0; k < order.size() && k < 8; ++k)
+	{
+		const int i = order[k];
+		where.push_back({{"ellipsoid", i},
+						 {"mode", toString(body.mode(i))},
+						 {"bone", body.rig().bones[std::size_t(body.dominantBone(i))].name},
+						 {"share", total > 0 ? double(counts[i]) / double(total) : 0.0}});
+	}
+	j["fallback_at"] = where;
+	return j;
+}
+
 /// The run's description, cost and final-state fields of the metrics JSON (not the cloth metrics).
 nlohmann::json runJson(const DrapeSimulation& sim, int steps, const std::vector<double>& stepMs,
 					   const std::vector<double>& collisionMs)
@@ -956,6 +999,8 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 {
 	const ClothSample start = sim.sample();
 	std::vector<double> stepMs, collisionMs, skinMs, writeMs;
+	std::vector<double> colliderCpuMs; // the ellipsoid collider alone, thread CPU (robust on a loaded machine)
+	long long boneFieldNodes = 0, boneFieldFallbacks = 0;
 	stepMs.reserve(std::size_t(steps));
 	collisionMs.reserve(std::size_t(steps));
 	SampleExtremes extremes;
@@ -967,6 +1012,9 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 		collisionMs.push_back(st.collisionSeconds * 1e3);
 		skinMs.push_back(st.bodySkinSeconds * 1e3);
 		writeMs.push_back(st.bodyWriteSeconds * 1e3);
+		colliderCpuMs.push_back(st.colliderCpuSeconds * 1e3);
+		boneFieldNodes += st.boneFieldNodes;
+		boneFieldFallbacks += st.boneFieldFallbacks;
 		if (k % sim.scene().sampleEvery == 0 || k == steps)
 		{
 			last = sim.sample();
@@ -978,6 +1026,8 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 			progress(k, steps, st);
 	}
 	nlohmann::json j = runJson(sim, steps, stepMs, collisionMs);
+	if (sim.ellipsoidCollider() && steps > 0)
+		j["collider_cpu_ns_per_node_step_median"] = median(colliderCpuMs) * 1e6 / std::max(1, sim.nodeCount());
 	j.update(metrics::toJson(metrics::ClothMetrics{last, sim.contacts()}));
 	if (sim.scene().collider.kind == ColliderKind::Ellipsoids)
 	{
@@ -1006,6 +1056,8 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 		// Per step (every substep poses the body): pose + skinning + ellipsoids, and the write into the shape.
 		j["body_skin_ms_per_step_median"] = steps > 0 ? median(skinMs) : 0.0;
 		j["body_write_ms_per_step_median"] = steps > 0 ? median(writeMs) : 0.0;
+		if (sim.ellipsoidCollider() && sim.ellipsoidCollider()->getActiveSkinField())
+			j["bone_field"] = boneFieldJson(*sim.ellipsoidCollider(), d->body(), boneFieldNodes, boneFieldFallbacks);
 	}
 	return j;
 }

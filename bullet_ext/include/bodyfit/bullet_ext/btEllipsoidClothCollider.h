@@ -42,6 +42,11 @@ struct btEllipsoidClothStats
 							 ///< convergence): the union push-out moved the node instead
 	int m_skinMarchLimits;   ///< path marches that reached their step limit: the node stopped at the last point
 							 ///< known outside (conservative)
+	// Tight mode on a skinned body (the compound has a bind pose and bone frames), substeps whose ellipsoids moved:
+	int m_boneFieldNodes;     ///< tested nodes decided on the bind-pose field in the frame of their candidates' bone
+	int m_boneFieldFallbacks; ///< tested nodes the union response decided instead (a joint: a candidate refitted or
+							  ///< of a bone moving differently, near in the current or the bind pose); where:
+							  ///< btEllipsoidClothCollider::getBoneFieldFallbacks
 
 	btEllipsoidClothStats() { reset(); }
 	void reset();
@@ -167,6 +172,10 @@ public:
 	/// How far below the skin offset a node decided by `field` may end (the guarantee's tolerance): the field's seam,
 	/// four quanta and the rounding of btScalar coordinates over the grid.
 	static btScalar skinFieldTolerance(const btSkinDistanceField& field);
+	/// Skinned bodies in tight mode: per ellipsoid, the nodes it sent to the union response since installation (the
+	/// first candidate that was refitted or of another bone group, see btEllipsoidClothStats::m_boneFieldFallbacks);
+	/// empty until the first such substep.
+	const btAlignedObjectArray<int>& getBoneFieldFallbacks() const;
 
 	/// True once the body was found removed from the world it was in at install: the collider then stops colliding
 	/// and never reads the body again (it may be deleted; uninstallCollider still removes the collider).

@@ -75,6 +75,10 @@ protected:
 	int m_analyticRevision;
 	const btSkinDistanceField* m_skinField; ///< the skin's distance field in this compound's frame, or 0
 	bool m_ownsSkinField;
+	const btEllipsoidCompoundShape* m_bindPose; ///< skinned body: the ellipsoids the field was baked with, or 0
+	bool m_ownsBindPose;
+	btAlignedObjectArray<int> m_frameBones;            ///< skinned body: per ellipsoid its bone, -1 not rigid
+	btAlignedObjectArray<btTransform> m_bindToCurrent; ///< per ellipsoid: bind body frame -> current body frame
 
 	void computeLocalData(int index);
 	/// The as-given geometry of ellipsoid `index` (basis and semi-axes sanitised as addEllipsoid does).
@@ -141,6 +145,22 @@ public:
 	{
 		return m_skinField && m_localScaling == btVector3(1, 1, 1) ? m_skinField : 0;
 	}
+
+	/// A skinned body whose skin field was baked in the bind pose (bullet_ext/README.md, "Tight skin surface",
+	/// animated bodies): `bindPose` holds the bind ellipsoids (same count and order; its frame is this compound's);
+	/// 0 detaches (and drops the bone frames). \param owned the compound deletes it as setSkinField does its field.
+	/// Refused (false, *error set, nothing taken) for a count that differs from getNumEllipsoids().
+	bool setBindPose(const btEllipsoidCompoundShape* bindPose, bool owned, const char** error = 0);
+	const btEllipsoidCompoundShape* getBindPose() const { return m_bindPose; }
+	/// The bone frames of the current pose, written by a skinning driver after setEllipsoids: per ellipsoid the bone
+	/// whose rigid motion carries it from the bind pose (-1: not rigid, e.g. refitted at a joint) and that motion
+	/// (bind body frame -> current body frame; ignored for -1). Refused (false, *error set) for a count that
+	/// differs, null arrays, or a bone >= 0 whose basis is not a rotation (within 1e-4).
+	bool setBoneFrames(int count, const int* bones, const btTransform* bindToCurrent, const char** error = 0);
+	/// True when setBoneFrames ran since the last change of the ellipsoid count or of the bind pose.
+	bool hasBoneFrames() const { return m_frameBones.size() == m_ellipsoids.size() && m_ellipsoids.size() > 0; }
+	int getFrameBone(int index) const { return m_frameBones[index]; }
+	const btTransform& getBindToCurrent(int index) const { return m_bindToCurrent[index]; }
 
 	/// zeta of ellipsoid i at a compound-local point.
 	btScalar zeta(int index, const btVector3& localPoint) const;

@@ -127,6 +127,13 @@ public:
 	/// Bound points of ellipsoid j (its cluster's vertices first, then piece corners).
 	const std::vector<BoundPoint>& points(int j) const { return bound_[std::size_t(j)].points; }
 	EllipsoidMotion mode(int j) const { return bound_[std::size_t(j)].mode; }
+	/// The bone of ellipsoid j's largest weight (a rigid ellipsoid moves with its skinning matrix).
+	int dominantBone(int j) const { return bound_[std::size_t(j)].dominant; }
+	/// The bones with weight on ellipsoid j's bound points, and its bind-pose ellipsoid (which contains them).
+	const std::vector<int>& bones(int j) const { return bound_[std::size_t(j)].bones; }
+	const Ellipsoid& bindEllipsoid(int j) const { return bound_[std::size_t(j)].bind; }
+	/// The skinning matrices S_i of the last update, one per bone (empty before the first).
+	const std::vector<Eigen::Affine3d>& skinning() const { return skinning_; }
 	/// Largest per-axis growth factor of the last update's enclosing step for ellipsoid j (1 for rigid ones), and the
 	/// largest growth of a semi-axis in metres (how far the surface was pushed out beyond the moved ellipsoid).
 	double lastScale(int j) const { return bound_[std::size_t(j)].lastScale; }
@@ -156,6 +163,7 @@ private:
 	std::vector<Bound> bound_;
 	std::vector<Ellipsoid> current_;
 	Eigen::MatrixX3d skinned_;
+	std::vector<Eigen::Affine3d> skinning_;
 	std::vector<Eigen::Vector3d> rows_;             ///< skinned_ row by row
 	std::vector<Eigen::Array3d> squares_, extreme_; ///< scratch of updateOne
 };

@@ -21,6 +21,7 @@ Eigen -> Bullet conversion lives here (the bridge is the only layer that sees bo
 #include <LinearMath/btAlignedObjectArray.h>
 #include <LinearMath/btMatrix3x3.h>
 #include <LinearMath/btScalar.h>
+#include <LinearMath/btTransform.h>
 #include <LinearMath/btVector3.h>
 
 #include <memory>
@@ -94,6 +95,10 @@ public:
 						const AnimationTiming& timing, const SkinnedBodyOptions& options = {});
 
 	/// The compound whose ellipsoids are replaced at every update (child i = ellipsoid i of the fit); null: none.
+	/// When the compound has a bind pose (btEllipsoidCompoundShape::setBindPose: the tight skin surface of an
+	/// animated body), every update also writes its bone frames: per ellipsoid its dominant bone and that bone's
+	/// skinning motion when its skin moves with it: a rigid ellipsoid, or one whose bones all move like the dominant
+	/// one within frameTolerance() over its bind ellipsoid (-1 otherwise: a bending joint).
 	/// \throws InvalidInputError when its ellipsoid count differs from the fit's. Writes the current pose at once.
 	void setCompound(btEllipsoidCompoundShape* compound);
 	/// The triangle mesh (of rig.bindMesh) whose vertices are replaced at every update; null: none.
@@ -112,11 +117,22 @@ public:
 	/// Increases whenever the pose changes (the metrics rebuild their skin reference only then).
 	long long poseRevision() const { return m_revision; }
 
+	/// How far (metres) the skin of an ellipsoid may move away from its dominant bone's rigid motion and still be
+	/// handed to the collider in that bone's frame (default 0.5 mm: a quarter of the default 2 mm skin offset, so a
+	/// node placed on the bind field stays at least 1.5 mm outside the moved skin). Takes effect at the next update.
+	/// \throws InvalidInputError for a negative or non-finite tolerance.
+	double frameTolerance() const { return m_frameTolerance; }
+	void setFrameTolerance(double metres);
+
 	const SkinnedDriverStats& stats() const { return m_stats; }
 	void resetStats() { m_stats = SkinnedDriverStats(); }
 
 private:
 	void writeCompound();
+	/// The bone frames of the current pose into the compound (see setCompound).
+	void writeBoneFrames();
+	/// Every bone with weight on ellipsoid j moves like `bone` within m_frameTolerance (see frameTolerance).
+	bool movesWithBone(int j, int bone, const std::vector<Eigen::Affine3d>& skinning) const;
 	void writeMesh();
 
 	const AnimationClip* m_clip;
@@ -130,6 +146,9 @@ private:
 	SkinnedDriverStats m_stats;
 	btAlignedObjectArray<btVector3> m_centers, m_semiAxes; ///< the pose in Bullet types, for setEllipsoids
 	btAlignedObjectArray<btMatrix3x3> m_bases;
+	double m_frameTolerance = 0.0005;
+	btAlignedObjectArray<int> m_frameBones; ///< the bone frames in Bullet types, for setBoneFrames
+	btAlignedObjectArray<btTransform> m_bindToCurrent;
 };
 
 } // namespace bodyfit

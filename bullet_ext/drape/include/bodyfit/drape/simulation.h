@@ -89,6 +89,10 @@ struct StepStats
 	/// Bullet's cached triangle prisms and sparse-SDF cells dropped). 0 for a body that does not deform.
 	double bodySkinSeconds = 0.0;
 	double bodyWriteSeconds = 0.0;
+	/// Tight surface on an animated body (btEllipsoidClothStats, every substep of the step): tested nodes decided on
+	/// the bind-pose field in a bone's frame, and those the union response decided (joints).
+	long long boneFieldNodes = 0;
+	long long boneFieldFallbacks = 0;
 };
 
 /// Cloth-quality numbers at one instant (inside counts, depth, zeta, NaN nodes).
