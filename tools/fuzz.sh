@@ -6,7 +6,9 @@
 #   tools/fuzz.sh [BUILD_DIR] [SECONDS_PER_TARGET] [TARGET...]
 #
 # BUILD_DIR defaults to build-fuzz, configured and built here if needed (clang, ASan+UBSan, -DBODYFIT_FUZZ=ON).
-# CI (tools/ci-extra.sh) runs 45 s per target. The long run documented in docs/ROBUSTNESS.md is
+# FUZZ_RUNS=N stops each target after N executions (SECONDS_PER_TARGET stays the limit): with the fixed -seed the
+# run is then the same on every machine, so a CI result can be reproduced here (tools/ci-extra.sh).
+# CI (tools/ci-extra.sh) runs a fixed number of executions per target (about 45 s each). The long run documented in docs/ROBUSTNESS.md is
 #   tools/fuzz.sh build-fuzz 3600        # one hour per target; the corpora persist in BUILD_DIR/fuzz-corpus/
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -84,7 +86,7 @@ for t in "${TARGETS[@]}"; do
 	echo "== $t: ${SECONDS_PER_TARGET}s =="
 	set +e
 	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-		LSAN_OPTIONS=suppressions="$PWD/fuzz/lsan.supp":print_suppressions=0 "$exe" "$BUILD/fuzz-corpus/$t" -max_total_time="$SECONDS_PER_TARGET" -seed="${FUZZ_SEED:-1}" -timeout=20 -rss_limit_mb=2048 \
+		LSAN_OPTIONS=suppressions="$PWD/fuzz/lsan.supp":print_suppressions=0 "$exe" "$BUILD/fuzz-corpus/$t" -max_total_time="$SECONDS_PER_TARGET" ${FUZZ_RUNS:+-runs="$FUZZ_RUNS"} -seed="${FUZZ_SEED:-1}" -timeout=20 -rss_limit_mb=2048 \
 		-max_len=1048576 -artifact_prefix="$art" -print_final_stats=1 >"$log" 2>&1
 	rc=$?
 	set -e

@@ -25,6 +25,24 @@ const double kWideCellDilation = 1.0;
 /// colliders_patch --moving: about 250 us per rebuild for 85 ellipsoids, a quarter of the collider's substep).
 const double kAnimatedMargin = 0.25;
 
+/// Hands the refusal `e` (null: none) to the caller's `error` when it asked for one; true when there is none.
+bool reportRefusal(const char* e, const char** error)
+{
+	if (error)
+		*error = e;
+	return !e;
+}
+
+/// Points `current` at `next`, deleting the object it pointed at when it owned it and `next` is another one.
+template <class T>
+void replaceOwned(const T*& current, bool& ownsCurrent, const T* next, bool owned)
+{
+	if (ownsCurrent && current != next)
+		delete current;
+	current = next;
+	ownsCurrent = next && owned;
+}
+
 /// R diag(a) of a local ellipsoid.
 btMatrix3x3 unwhitenOf(const btEllipsoidLocalData& e)
 {
@@ -93,14 +111,9 @@ bool btEllipsoidCompoundShape::setBindPose(const btEllipsoidCompoundShape* bindP
 	const char* e = 0;
 	if (bindPose && (bindPose == this || bindPose->getNumEllipsoids() != getNumEllipsoids()))
 		e = "btEllipsoidCompoundShape::setBindPose: the bind pose must be another compound with the same ellipsoid count";
-	if (error)
-		*error = e;
-	if (e)
+	if (!reportRefusal(e, error))
 		return false;
-	if (m_ownsBindPose && m_bindPose != bindPose)
-		delete m_bindPose;
-	m_bindPose = bindPose;
-	m_ownsBindPose = bindPose && owned;
+	replaceOwned(m_bindPose, m_ownsBindPose, bindPose, owned);
 	m_frameBones.clear();
 	m_bindToCurrent.clear();
 	return true;
@@ -129,9 +142,7 @@ bool btEllipsoidCompoundShape::setBoneFrames(int count, const int* bones, const 
 			e = "btEllipsoidCompoundShape::setBoneFrames: a rigid ellipsoid's motion is not a finite rotation and "
 				"translation (use bone -1 for it)";
 	}
-	if (error)
-		*error = e;
-	if (e)
+	if (!reportRefusal(e, error))
 		return false;
 	m_frameBones.resize(count);
 	m_bindToCurrent.resize(count, btTransform::getIdentity());
@@ -151,14 +162,9 @@ bool btEllipsoidCompoundShape::setSkinField(const btSkinDistanceField* field, bo
 	else if (field && !(m_localScaling == btVector3(1, 1, 1)))
 		e = "btEllipsoidCompoundShape::setSkinField: the compound has a local scaling other than (1, 1, 1); the field "
 			"describes the unscaled body";
-	if (error)
-		*error = e;
-	if (e)
+	if (!reportRefusal(e, error))
 		return false;
-	if (m_ownsSkinField && m_skinField != field)
-		delete m_skinField;
-	m_skinField = field;
-	m_ownsSkinField = field && owned;
+	replaceOwned(m_skinField, m_ownsSkinField, field, owned);
 	++m_analyticRevision;
 	return true;
 }

@@ -358,6 +358,22 @@ TEST_CASE("glTF references are checked before assimp reads them: one-line errors
 	const std::string expected = "robust_fuzz_glb_skin_no_ibm.glb: glTF skins[0] has no inverseBindMatrices";
 	CHECK_THROWS_WITH(loadRig(fuzzed), Catch::Contains(expected));
 	CHECK_THROWS_WITH(loadTriMesh(fuzzed), Catch::Contains(expected));
+	// The same file edited so that the checks would have seen another document than assimp's reader: each was the
+	// same segfault in CI's fuzz run (session of 2026-12-02) and is refused now.
+	const std::vector<std::pair<std::string, std::string>> disagreeing = {
+		// one byte of a name is not UTF-8: nlohmann refuses it, rapidjson reads it
+		{"robust_gltf_bad_utf8.glb", "JSON text (read as glTF) does not parse: "},
+		// a second "skins" array (without inverse bind matrices) first: rapidjson keeps it, nlohmann the last one
+		{"robust_gltf_repeated_key.glb", "JSON text (read as glTF) repeats the key \"skins\" in one object"},
+		// no asset.version: assimp reads it as glTF 2.0, so the glTF 2.0 checks run on it
+		{"robust_gltf_no_version.glb", "glTF skins[0] has no inverseBindMatrices"},
+	};
+	for (const auto& [file, message] : disagreeing)
+	{
+		CAPTURE(file);
+		CHECK_THROWS_WITH(loadRig(bodyfit_test::dataPath(file)), Catch::Contains(file + ": " + message));
+		CHECK_THROWS_WITH(loadTriMesh(bodyfit_test::dataPath(file)), Catch::Contains(file + ": " + message));
+	}
 	// The unedited cylinder passes every check (the edits below are what fails).
 	CHECK(editedGltfError("refs_ok", [](nlohmann::json&) {}) == "no error");
 	// Accessor 0 (POSITION) is 110 VEC3 floats in buffer view 0 of 1320 bytes.

@@ -80,6 +80,7 @@ if [ -x "$FIT" ]; then
 	expect 2 "byteLength is 4000000000" -- "$FIT" "$DATA/robust_gltf_buffer_too_long.gltf" -o "$W/o.json"
 	expect 2 "GLB header declares a JSON chunk of 4026531840 bytes" -- "$FIT" "$DATA/robust_glb_huge_json_chunk.glb" -o "$W/o.json"
 	expect 2 "glTF skins\[0\] has no inverseBindMatrices" -- "$FIT" "$DATA/robust_fuzz_glb_skin_no_ibm.glb" -o "$W/o.json"
+	expect 2 "robust_gltf_bad_utf8.glb: JSON text (read as glTF) does not parse" -- "$FIT" "$DATA/robust_gltf_bad_utf8.glb" -o "$W/o.json"
 	expect 2 "PLY header declares 4000000000 'vertex' elements" -- "$FIT" "$DATA/robust_ply_huge_count.ply" -o "$W/o.json"
 	{ cat "$DATA/tetra.obj"; for i in $(seq 10001); do echo "o part$i"; done; } >"$TMP/many_o.obj"
 	expect 2 "more than 10000 object/group/material statements" -- "$FIT" "$TMP/many_o.obj" -o "$W/o.json"
