@@ -359,7 +359,7 @@ TEST_CASE("glTF references are checked before assimp reads them: one-line errors
 	CHECK_THROWS_WITH(loadRig(fuzzed), Catch::Contains(expected));
 	CHECK_THROWS_WITH(loadTriMesh(fuzzed), Catch::Contains(expected));
 	// The same file edited so that the checks would have seen another document than assimp's reader: each was the
-	// same segfault in CI's fuzz run (session of 2026-12-02) and is refused now.
+	// same segfault (the first one found by CI's fuzz run of 2026-12-01) and is refused now.
 	const std::vector<std::pair<std::string, std::string>> disagreeing = {
 		// one byte of a name is not UTF-8: nlohmann refuses it, rapidjson reads it
 		{"robust_gltf_bad_utf8.glb", "JSON text (read as glTF) does not parse: "},
