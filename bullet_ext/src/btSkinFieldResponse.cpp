@@ -340,7 +340,10 @@ void btEllipsoidClothColliderCore::prepareBoneFields()
 	const bool frames = field && bind && m_compound->hasBoneFrames() && bind->getNumEllipsoids() == n;
 	const bool hadFrames = n > 0 && m_frameBones[1].size() == n;
 	m_frameBones[0].copyFromArray(m_frameBones[1]);
-	m_frames[0].copyFromArray(m_frames[1]);
+	// (copyFromArray would copy an uninitialised default transform into the new slots first)
+	m_frames[0].resize(m_frames[1].size(), btTransform::getIdentity());
+	for (int i = 0; i < m_frames[1].size(); ++i)
+		m_frames[0][i] = m_frames[1][i];
 	m_frameBones[1].resize(frames ? n : 0);
 	m_frames[1].resize(frames ? n : 0, btTransform::getIdentity());
 	for (int i = 0; frames && i < n; ++i)
@@ -381,7 +384,7 @@ void btEllipsoidClothColliderCore::groupBoneFrames(const btSkinDistanceField& fi
 	const int n = m_frameBones[1].size();
 	m_frameGroup.resize(n);
 	m_groupGeometry.resize(0);
-	m_groupPrevious.resize(0);
+	m_groupPrevious.resize(0, btTransform::getIdentity()); // (a default fill value would be an uninitialised transform)
 	m_groupBone.resize(0);
 	m_groupFirst.resize(0);
 	const btScalar offset = btMax(m_config.m_skinOffset, btScalar(0));

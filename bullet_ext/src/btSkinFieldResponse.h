@@ -35,7 +35,11 @@ struct btSkinPathHit
 class btSkinFieldGeometry
 {
 public:
-	btSkinFieldGeometry() : m_field(0), m_offset(0), m_invLipschitz(1), m_margin(0), m_hitBand(0), m_contactBand(0), m_farStep(0), m_tolerance(0) {}
+	btSkinFieldGeometry()
+		: m_field(0), m_offset(0), m_invLipschitz(1), m_margin(0), m_hitBand(0), m_contactBand(0), m_farStep(0), m_tolerance(0),
+		  m_toBody(btTransform::getIdentity()), m_toWorld(btTransform::getIdentity())
+	{
+	}
 
 	/// Prepares for a field (0: tight mode off) and a skin offset; bodyToWorld is the body pose of the substep.
 	void begin(const btSkinDistanceField* field, btScalar offset, const btTransform& bodyToWorld);

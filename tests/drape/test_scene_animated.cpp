@@ -385,7 +385,7 @@ bodyfit::AnimationClip kickClip(const bodyfit::Rig& rig)
 	clip.duration = 1.6;
 	clip.ticksPerSecond = 1000.0;
 	const std::vector<double> swing = {0.0, 60.0, 0.0, -60.0, 0.0, 60.0, 0.0, -60.0, 0.0};
-	for (const std::string& name : {"upperleg01.L", "upperleg01.R"})
+	for (const std::string name : {"upperleg01.L", "upperleg01.R"})
 	{
 		bodyfit::BoneChannel ch;
 		for (int b = 0; b < rig.boneCount(); ++b)

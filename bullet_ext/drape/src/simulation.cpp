@@ -1028,7 +1028,7 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 	nlohmann::json j = runJson(sim, steps, stepMs, collisionMs);
 	if (sim.ellipsoidCollider() && steps > 0)
 		j["collider_cpu_ns_per_node_step_median"] = median(colliderCpuMs) * 1e6 / std::max(1, sim.nodeCount());
-	j.update(metrics::toJson(metrics::ClothMetrics{last, sim.contacts()}));
+	j.update(metrics::toJson(metrics::ClothMetrics{last, sim.contacts(), metrics::EdgeCrossings{}}));
 	if (sim.scene().collider.kind == ColliderKind::Ellipsoids)
 	{
 		// The contact rule before the collider's flags (issue 14): nodes near the union, kept so old numbers compare.
