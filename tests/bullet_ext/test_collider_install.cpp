@@ -90,7 +90,7 @@ TEST_CASE("install: worlds are checked by their virtual type, never dereferenced
 		btDeformableBodySolver deformableSolver;
 		solver.setDeformableSolver(&deformableSolver);
 		btDeformableMultiBodyDynamicsWorld world(&dispatcher, &broadphase, &solver, &config, &deformableSolver);
-		const std::string why = installError(static_cast<btSoftRigidDynamicsWorld*>(static_cast<btDiscreteDynamicsWorld*>(&world)), &body);
+		const std::string why = installError((btSoftRigidDynamicsWorld*)&world, &body);
 		CHECK(why.find("btDeformableMultiBodyDynamicsWorld is not supported") != std::string::npos);
 	}
 	SECTION("a btDiscreteDynamicsWorld")
