@@ -19,11 +19,18 @@ const double kCellDilation = 0.25;
 /// grown cell (fast nodes, cell corners) but not the block.
 const double kWideCellDilation = 1.0;
 
-/// The margin of an animated compound's lists, in cells: a driver posing a skinned body every substep moves most
-/// ellipsoids by well under this (1.4 cm for a 1.8 m body), so the lists are rebuilt only when one has drifted that
-/// far since the last build; the longer lists cost less than rebuilding them every substep (bodyfit-bench
-/// colliders_patch --moving: about 250 us per rebuild for 85 ellipsoids, a quarter of the collider's substep).
+/// The smallest margin of an animated compound's lists, in cells: a driver posing a skinned body every substep moves
+/// most ellipsoids by well under this (1.4 cm for a 1.8 m body), so the lists are rebuilt only when one has drifted
+/// beyond its margin since the last build; the longer lists cost less than rebuilding them every substep
+/// (bodyfit-bench colliders_patch --moving: about 250 us per rebuild for 85 ellipsoids, a quarter of the collider's
+/// substep).
 const double kAnimatedMargin = 0.25;
+
+/// Each ellipsoid's margin at a rebuild: its mean drift per update since the last build times this many updates,
+/// within [kAnimatedMargin, kAnimatedMarginMax] cells. One margin for all made the fastest part (a foot, a hand in a
+/// walk) rebuild the lists every third substep; per ellipsoid, only the fast ones get the longer lists.
+const double kAnimatedMarginUpdates = 16.0;
+const double kAnimatedMarginMax = 1.0;
 
 /// Hands the refusal `e` (null: none) to the caller's `error` when it asked for one; true when there is none.
 bool reportRefusal(const char* e, const char** error)
@@ -47,6 +54,36 @@ void replaceOwned(const T*& current, bool& ownsCurrent, const T* next, bool owne
 btMatrix3x3 unwhitenOf(const btEllipsoidLocalData& e)
 {
 	return e.m_basis.scaled(e.m_semiAxes);
+}
+
+/// Of the frames u0 S of the same ellipsoid (S a signed permutation: S ball = ball, so c + u0 S ball is the same set),
+/// the one closest to u in the Frobenius norm: the S that maximises trace(S^T u0^T u) = sum_k sign_k m[row_k][k] for
+/// m = u0^T u, i.e. the permutation with the largest sum of |m[row_k][k]| and the signs of those entries. A driver
+/// that builds each pose from an SVD can hand over the same ellipsoid with axes swapped or signs flipped; compared
+/// with u0 itself, that read as a drift of up to twice a semi-axis in one substep.
+btMatrix3x3 closestFrame(const btMatrix3x3& u0, const btMatrix3x3& u)
+{
+	const btMatrix3x3 m = u0.transpose() * u;
+	static const int kPermutations[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+	int best = 0;
+	btScalar bestSum = -SIMD_INFINITY;
+	for (int p = 0; p < 6; ++p)
+	{
+		const int* row = kPermutations[p];
+		const btScalar sum = btFabs(m[row[0]][0]) + btFabs(m[row[1]][1]) + btFabs(m[row[2]][2]);
+		if (sum > bestSum)
+			bestSum = sum, best = p;
+	}
+	// Column k of u0 S is sign_k times column row_k of u0.
+	btMatrix3x3 out;
+	for (int k = 0; k < 3; ++k)
+	{
+		const int r = kPermutations[best][k];
+		const btScalar sign = m[r][k] < btScalar(0) ? btScalar(-1) : btScalar(1);
+		for (int j = 0; j < 3; ++j)
+			out[j][k] = sign * u0[j][r];
+	}
+	return out;
 }
 
 /// Columns orthonormalised (Gram-Schmidt, column 0 first) and det +1. A degenerate input becomes the identity.
@@ -399,7 +436,8 @@ btEllipsoidWorldCache::btEllipsoidWorldCache()
 	  m_wideDilation(btScalar(0)),
 	  m_stampCounter(0),
 	  m_gridMargin(btScalar(0)),
-	  m_gridBuilds(0)
+	  m_gridBuilds(0),
+	  m_updatesSinceBuild(0)
 {
 	m_transform.setIdentity();
 	m_inverse.setIdentity();
@@ -471,24 +509,53 @@ bool btEllipsoidWorldCache::update(const btEllipsoidCompoundShape* shape, const 
 	// ellipsoids stay within the lists' margin.
 	if (!sameShape && !(animated && gridCovers()))
 		buildGrid(animated);
+	else if (animated)
+		++m_updatesSinceBuild;
 	return true;
 }
 
 bool btEllipsoidWorldCache::gridCovers() const
 {
 	const int n = m_shape->getNumEllipsoids();
-	if (!(m_gridMargin > btScalar(0)) || m_gridCenters.size() != n)
+	if (!(m_gridMargin > btScalar(0)) || m_gridCenters.size() != n || m_gridMargins.size() != n)
 		return false;
 	for (int i = 0; i < n; ++i)
-	{
-		const btEllipsoidLocalData& e = m_shape->getEllipsoid(i);
-		const btMatrix3x3 d = unwhitenOf(e) - m_gridUnwhiten[i];
-		const btScalar drift = (e.m_center - m_gridCenters[i]).length() +
-							   btSqrt(d[0].length2() + d[1].length2() + d[2].length2());
-		if (!(drift <= m_gridMargin))
+		if (!(driftSinceBuild(i) <= m_gridMargins[i]))
 			return false;
-	}
 	return true;
+}
+
+btScalar btEllipsoidWorldCache::driftSinceBuild(int i) const
+{
+	const btEllipsoidLocalData& e = m_shape->getEllipsoid(i);
+	const btMatrix3x3 u = unwhitenOf(e), d = u - closestFrame(m_gridUnwhiten[i], u);
+	return (e.m_center - m_gridCenters[i]).length() + btSqrt(d[0].length2() + d[1].length2() + d[2].length2());
+}
+
+void btEllipsoidWorldCache::chooseGridMargins(bool animated, btScalar cell)
+{
+	// Each ellipsoid's margin from its mean drift per update since the last build (the first build of an animated
+	// compound, and any build after a count change, give every ellipsoid the smallest margin). Deterministic: it
+	// depends only on the poses handed in.
+	const int n = m_shape->getNumEllipsoids();
+	const btScalar smallest = animated ? btScalar(kAnimatedMargin) * cell : btScalar(0);
+	const bool haveRates = animated && m_updatesSinceBuild > 0 && m_gridCenters.size() == n;
+	m_gridMargins.resize(n);
+	m_gridMargin = smallest;
+	for (int i = 0; i < n; ++i)
+	{
+		btScalar margin = smallest;
+		if (haveRates)
+		{
+			const btScalar perUpdate = driftSinceBuild(i) / btScalar(m_updatesSinceBuild + 1);
+			margin = btMin(btMax(perUpdate * btScalar(kAnimatedMarginUpdates), smallest),
+						   btScalar(kAnimatedMarginMax) * cell);
+			if (!(margin >= smallest)) // NaN drift (the poses were checked finite, but keep the lists sound)
+				margin = btScalar(kAnimatedMarginMax) * cell;
+		}
+		m_gridMargins[i] = margin;
+		m_gridMargin = btMax(m_gridMargin, margin);
+	}
 }
 
 void btEllipsoidWorldCache::buildGrid(bool animated)
@@ -516,11 +583,12 @@ void btEllipsoidWorldCache::buildGrid(bool animated)
 	}
 	// About 32 cells along the longest side of the compound's box (5.6 cm for a 1.8 m body; the arrays stay in L1):
 	// a node on the body then meets one to three ellipsoids. Built once per compound revision, in its frame (an
-	// animated compound: the box grown by the margin, so the ellipsoids stay inside while they stay within it).
+	// animated compound: the box grown by the largest margin, so the ellipsoids stay inside while they stay within
+	// theirs).
 	btVector3 size = hi - lo;
-	const btScalar margin = animated ? btScalar(kAnimatedMargin) * btMax(size[size.maxAxis()], btScalar(1e-3)) /
-										   btScalar(kGridCellsLongestSide)
-									 : btScalar(0);
+	chooseGridMargins(animated, btMax(size[size.maxAxis()], btScalar(1e-3)) / btScalar(kGridCellsLongestSide));
+	m_updatesSinceBuild = 0;
+	const btScalar margin = m_gridMargin;
 	lo -= btVector3(margin, margin, margin);
 	size += btVector3(2 * margin, 2 * margin, 2 * margin);
 	const btScalar longest = btMax(size[size.maxAxis()], btScalar(1e-3));
@@ -532,11 +600,10 @@ void btEllipsoidWorldCache::buildGrid(bool animated)
 	m_wideDilation = btScalar(kWideCellDilation);
 	for (int k = 0; k < 3; ++k)
 		m_dims[k] = btMax(1, btMin(int(kGridCellsLongestSide), int(size[k] * m_invCell) + 1));
-	// The lists of an animated compound hold each ellipsoid grown by the margin: E within `margin` of E_b meets a
+	// The lists of an animated compound hold each ellipsoid grown by its margin: E within `margin` of E_b meets a
 	// grown cell only if E_b meets that cell grown by `margin` more.
-	m_gridMargin = margin;
-	buildLists(m_cellDilation + margin * m_invCell, m_cellStart, m_cellItems);
-	buildLists(m_wideDilation + margin * m_invCell, m_wideStart, m_wideItems);
+	buildLists(m_cellDilation, m_cellStart, m_cellItems);
+	buildLists(m_wideDilation, m_wideStart, m_wideItems);
 	m_gridCenters.resize(n);
 	m_gridUnwhiten.resize(n);
 	for (int i = 0; i < n; ++i)
@@ -566,8 +633,6 @@ void btEllipsoidWorldCache::buildLists(btScalar dilation, btAlignedObjectArray<i
 	//     only if |W (m - c)| <= 1 + r (tighter than 2 along the long axes of elongated ellipsoids).
 	// Everything is relative to the grid origin (no large coordinates 1 km from the origin); the tests get a slack
 	// for rounding.
-	const btScalar half = cell * (btScalar(0.5) + dilation);
-	const btScalar rc = half * btSqrt(btScalar(3));
 	const btScalar slack = cell * btScalar(1e-4);
 
 	start.resize(cells + 1);
@@ -588,6 +653,9 @@ void btEllipsoidWorldCache::buildLists(btScalar dilation, btAlignedObjectArray<i
 		for (int i = 0; i < n; ++i)
 		{
 			const btEllipsoidLocalData& e = m_shape->getEllipsoid(i);
+			// The grown cell of this ellipsoid's lists: the dilation plus its margin (gridCovers).
+			const btScalar half = cell * (btScalar(0.5) + dilation) + (m_gridMargins.size() == n ? m_gridMargins[i] : btScalar(0));
+			const btScalar rc = half * btSqrt(btScalar(3));
 			const btVector3 grown = e.m_semiAxes + btVector3(rc, rc, rc);
 			btMatrix3x3 whitenGrown = e.m_basis.transpose();
 			btMatrix3x3 whiten = e.m_basis.transpose();

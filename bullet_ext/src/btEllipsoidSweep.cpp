@@ -95,7 +95,7 @@ const btAxisSymmetry* axisSymmetries()
 } // namespace
 
 btEllipsoidSweep::btEllipsoidSweep()
-	: m_growthPerLength(0), m_growthOffset(0), m_origin(0, 0, 0), m_unionMax(0, 0, 0), m_invCell(1)
+	: m_growthPerLength(0), m_growthOffset(0), m_origin(0, 0, 0), m_unionMax(0, 0, 0), m_invCell(1), m_listsBuilt(true)
 {
 	m_dims[0] = m_dims[1] = m_dims[2] = 0;
 }
@@ -140,7 +140,7 @@ bool btEllipsoidSweep::prepare(const btEllipsoidWorldCache& current)
 		m_growthPerLength = btMax(m_growthPerLength, k);
 		m_growthOffset = btMax(m_growthOffset, e);
 	}
-	buildGrid(n);
+	sizeGrid(n);
 	return true;
 }
 
@@ -206,7 +206,7 @@ bool btEllipsoidSweep::sweptBox(const btEllipsoidWorldCache& current, int j, btS
 	return k - k == btScalar(0); // finite
 }
 
-void btEllipsoidSweep::buildGrid(int count)
+void btEllipsoidSweep::sizeGrid(int count)
 {
 	m_dims[0] = m_dims[1] = m_dims[2] = 0;
 	m_cellStart.resize(0);
@@ -233,6 +233,15 @@ void btEllipsoidSweep::buildGrid(int count)
 	m_invCell = btScalar(1) / cell;
 	for (int k = 0; k < 3; ++k)
 		m_dims[k] = btMax(1, btMin(int(kCellsLongestSide), int(size[k] * m_invCell) + 1));
+	m_listsBuilt = false; // (buildLists, on the first path that needs them)
+}
+
+void btEllipsoidSweep::buildLists()
+{
+	// Built on demand: while the static grid holds every pose of the substep (the collider's m_sweepOnGrid), only
+	// paths longer than a cell come here, and most substeps have none.
+	m_listsBuilt = true;
+	const int count = m_boxes.size() / 2;
 	const int cells = m_dims[0] * m_dims[1] * m_dims[2];
 	m_cellStart.resize(cells + 1);
 	for (int c = 0; c <= cells; ++c)
@@ -299,11 +308,13 @@ btVector3 btEllipsoidSweep::previousPoint(const btEllipsoidWorldCache& current, 
 	return btVector3(pk[0], pk[1], pk[2]) + m_previousUnwhiten[j] * (now.m_whiten * (p - now.m_center));
 }
 
-int btEllipsoidSweep::candidates(const btVector3& q, const btVector3& x, btScalar radius, int* out) const
+int btEllipsoidSweep::candidates(const btVector3& q, const btVector3& x, btScalar radius, int* out)
 {
 	int nc = 0;
 	if (m_dims[0] > 0)
 	{
+		if (!m_listsBuilt)
+			buildLists();
 		const btScalar grow = growth(q, x, radius);
 		const btVector3 g(grow, grow, grow);
 		btVector3 boxMin = q, boxMax = q;

@@ -36,7 +36,8 @@ public:
 
 	/// Every ellipsoid whose moving-frame path test can meet the node path q -> x grown by `radius` on every side
 	/// (see btEllipsoidSweep.cpp for when this is conservative), each once, written to out (room for all entries).
-	int candidates(const btVector3& q, const btVector3& x, btScalar radius, int* out) const;
+	/// The grid's lists are built by the first call after prepare().
+	int candidates(const btVector3& q, const btVector3& x, btScalar radius, int* out);
 	/// How far candidates() grows the path box of q -> x on every side: the radius plus the deviation bound.
 	btScalar growth(const btVector3& q, const btVector3& x, btScalar radius) const
 	{
@@ -75,12 +76,16 @@ private:
 	int m_dims[3];
 	btAlignedObjectArray<int> m_cellStart;
 	btAlignedObjectArray<int> m_cellItems;
+	bool m_listsBuilt; ///< m_cellStart / m_cellItems are those of the current boxes
 
 	/// Replaces the previous frame of entry j by its axis symmetry closest to the current frame (same ellipsoid).
 	void alignPreviousFrame(const btEllipsoidWorldCache::Entry& now, int j);
 	/// Swept box of entry j and its contribution to the deviation bound; false for a degenerate interpolation.
 	bool sweptBox(const btEllipsoidWorldCache& current, int j, btScalar& k, btScalar& e);
-	void buildGrid(int count);
+	/// The grid over the union of the swept boxes of `count` entries (its lists wait for buildLists).
+	void sizeGrid(int count);
+	/// Lists every swept box in each grown cell it meets (CSR).
+	void buildLists();
 	/// Cell range [lo, hi] per axis under the world box [bMin, bMax] (clamped to the grid).
 	void cellRange(const btVector3& bMin, const btVector3& bMax, int lo[3], int hi[3]) const;
 	int walkCells(const btVector3& boxMin, const btVector3& boxMax, int* out) const;

@@ -357,19 +357,28 @@ private:
 	btAlignedObjectArray<int> m_wideItems;
 	mutable btAlignedObjectArray<unsigned> m_stamp;
 	mutable unsigned m_stampCounter;
-	/// An animated compound (changed with the same count) gets lists built for every ellipsoid grown by this margin
-	/// (metres, 0 for a compound seen once), so they stay valid while each ellipsoid stays within it of its pose at the
-	/// build (gridCovers); the build-time poses, in the body frame:
+	/// An animated compound (changed with the same count) gets lists built for every ellipsoid grown by a margin of
+	/// its own (metres, chooseGridMargins; all 0 for a compound seen once), so they stay valid while each ellipsoid
+	/// stays within its margin of its pose at the build (gridCovers). m_gridMargin is the largest; then the
+	/// build-time poses, in the body frame:
 	btScalar m_gridMargin;
+	btAlignedObjectArray<btScalar> m_gridMargins;
 	int m_gridBuilds;
+	int m_updatesSinceBuild; ///< animated updates the lists covered since they were built
 	btAlignedObjectArray<btVector3> m_gridCenters;
 	btAlignedObjectArray<btMatrix3x3> m_gridUnwhiten; ///< R diag(a)
 
-	/// \param animated the compound changed with the same count: build with a margin (kAnimatedMargin)
+	/// \param animated the compound changed with the same count: build with margins (chooseGridMargins)
 	void buildGrid(bool animated);
-	/// Every ellipsoid of m_shape lies within m_gridMargin of its pose at the last build: its points move by at most
-	/// |c - c_b| + |U - U_b|_2 <= |c - c_b| + |U - U_b|_F (U = R diag(a)), so the lists still hold it.
+	/// Every ellipsoid i of m_shape lies within m_gridMargins[i] of its pose at the last build (driftSinceBuild), so
+	/// the lists still hold it.
 	bool gridCovers() const;
+	/// An upper bound of how far any point of ellipsoid i moved since the last build: |c - c_b| + |U - U_b|_2 <=
+	/// |c - c_b| + |U - U_b|_F (U = R diag(a)).
+	btScalar driftSinceBuild(int i) const;
+	/// Sets m_gridMargins and m_gridMargin for a build (`cell`: the cell size before the grid grows by the margin).
+	void chooseGridMargins(bool animated, btScalar cell);
+	/// Lists of the cells grown by `dilation` cells, each ellipsoid grown by its margin as well.
 	void buildLists(btScalar dilation, btAlignedObjectArray<int>& start, btAlignedObjectArray<int>& items) const;
 	/// Cell index along axis k of a world coordinate, clamped to the grid (NaN and huge values included).
 	int cellCoord(btScalar value, int k) const
