@@ -96,12 +96,15 @@ private:
 		}
 	};
 
-	/// One soft body's contact flags (getContactFlags) and whether the current substep processed it.
+	/// One soft body's contact flags (getContactFlags), its nodes' escape hints (kept across substeps: the ray of the
+	/// escape test that left the union last time, btEllipsoidUnionPushOut::leaveEnclosedPocket) and whether the
+	/// current substep processed it.
 	struct ContactRecord
 	{
 		const btSoftBody* m_softBody;
 		bool m_current;
 		btAlignedObjectArray<unsigned char> m_flags;
+		btAlignedObjectArray<unsigned char> m_escapeHints;
 	};
 
 	btEllipsoidCompoundShape* m_ownedCompound;
@@ -136,6 +139,7 @@ private:
 	btSkinFieldGeometry m_skinGeometry; ///< tight mode this substep (its field is 0 in ELLIPSOIDS mode)
 	btAlignedObjectArray<ContactRecord> m_contactRecords; ///< per soft body processed in the last substep
 	unsigned char* m_contactFlags;             ///< the flags collide() fills (0 outside collide())
+	unsigned char* m_escapeHints;              ///< that soft body's escape hints (0 outside collide())
 	const btSoftBody::Node* m_contactNodeBase; ///< node 0 of that soft body
 
 	/// The soft body's record, cleared and sized to its nodes, marked current; m_contactFlags points into it.

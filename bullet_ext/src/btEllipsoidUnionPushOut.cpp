@@ -118,7 +118,7 @@ void btEllipsoidUnionPushOut::finishExit(const btVector3& point, const btVector3
 }
 
 void btEllipsoidUnionPushOut::leaveEnclosedPocket(const btEllipsoidWorldCache& cache, const btVector3& from,
-												  btScalar skin, btPushOutResult& out)
+												  btScalar skin, btPushOutResult& out, unsigned char* hint)
 {
 	m_cache = &cache;
 	out.m_moved = false;
@@ -127,9 +127,19 @@ void btEllipsoidUnionPushOut::leaveEnclosedPocket(const btEllipsoidWorldCache& c
 	out.m_ellipsoid = -1;
 	out.m_point = from;
 	out.m_zeta = SIMD_INFINITY; // (not computed when nothing moves: the caller only reads it after a move)
-	// The axis rays on the bins first (cheap); the full test when all six are blocked (or the bins are not ready).
+	// The ray that left last time first (a resting node mostly leaves the same way every substep), then the axis rays
+	// on the bins (cheap), then the full test when all six are blocked (or the bins are not ready).
 	const bool binsReady = m_escapeRaysCache == &cache && m_escapeRaysCount == cache.size();
-	if ((binsReady && someAxisRayEscapes(from)) || escapesUnion(from, latticeDirection(0)))
+	const int hinted = hint ? int(*hint) : int(kNoEscapeHint);
+	if ((binsReady || hinted >= kLatticeHint) && hintedRayEscapes(hinted, from))
+		return;
+	int escaped = binsReady ? someAxisRayEscapes(from) : int(kNoEscapeHint);
+	int lattice = -2;
+	if (escaped == kNoEscapeHint && escapesUnion(from, latticeDirection(0), &lattice))
+		escaped = kLatticeHint + btMax(lattice, 0); // (the preferred direction here is lattice direction 0)
+	if (hint)
+		*hint = (unsigned char)escaped;
+	if (escaped != kNoEscapeHint)
 		return;
 	btVector3 dirs[26];
 	for (int d = 0; d < 26; ++d)
@@ -385,36 +395,46 @@ btScalar btEllipsoidUnionPushOut::realiseExit(const btVector3& origin, const btV
 	return z >= btScalar(1) ? s : SIMD_INFINITY;
 }
 
-bool btEllipsoidUnionPushOut::escapesUnion(const btVector3& p, const btVector3& preferred) const
+bool btEllipsoidUnionPushOut::escapesUnion(const btVector3& p, const btVector3& preferred, int* escaped) const
 {
 	// A point outside every ellipsoid can still sit in a pocket that the union encloses (fitted bodies have them
 	// under the skin, where neighbouring ellipsoids meet near the surface but not deeper in). Such a point is not
 	// reachable from outside. It is certainly not in a pocket if some ray from it misses the union: try the
 	// preferred direction, then the 26 directions of the 3x3x3 lattice. A ray is blocked when the far root of an
 	// ellipsoid's quadratic lies ahead; the quadratic is set up relative to each centre.
-	const btEllipsoidWorldCache& cache = *m_cache;
 	for (int d = -1; d < 26; ++d)
-	{
-		btVector3 dir = preferred;
-		if (d >= 0)
+		if (rayEscapes(p, d >= 0 ? latticeDirection(d) : preferred))
 		{
-			dir = latticeDirection(d);
-		}
-		bool blocked = false;
-		for (int k = 0; k < cache.size() && !blocked; ++k)
-		{
-			const btEllipsoidWorldCache::Entry& e = cache[k];
-			const btUnitBallQuadratic quadratic =
-				btUnitBallQuadratic::ofLine(e.m_whiten * (p - e.m_center), e.m_whiten * dir);
-			const btScalar disc = quadratic.discriminant();
-			if (!(quadratic.m_a > btScalar(0)) || disc < btScalar(0))
-				continue;
-			blocked = quadratic.exitAhead(disc);
-		}
-		if (!blocked)
+			if (escaped)
+				*escaped = d;
 			return true;
-	}
+		}
 	return false;
+}
+
+bool btEllipsoidUnionPushOut::rayEscapes(const btVector3& p, const btVector3& dir) const
+{
+	const btEllipsoidWorldCache& cache = *m_cache;
+	for (int k = 0; k < cache.size(); ++k)
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[k];
+		const btUnitBallQuadratic quadratic = btUnitBallQuadratic::ofLine(e.m_whiten * (p - e.m_center), e.m_whiten * dir);
+		const btScalar disc = quadratic.discriminant();
+		if (!(quadratic.m_a > btScalar(0)) || disc < btScalar(0))
+			continue;
+		if (quadratic.exitAhead(disc))
+			return false;
+	}
+	return true;
+}
+
+bool btEllipsoidUnionPushOut::hintedRayEscapes(int hint, const btVector3& p) const
+{
+	if (hint >= kLatticeHint && hint < kLatticeHint + 26)
+		return rayEscapes(p, latticeDirection(hint - kLatticeHint));
+	if (hint < 1 || hint > 6)
+		return false;
+	return axisRayEscapes((hint - 1) / 2, (hint - 1) % 2 ? -1 : 1, p);
 }
 
 void btEllipsoidUnionPushOut::prepareEscapeRays(const btEllipsoidWorldCache& cache)
@@ -477,7 +497,7 @@ void btEllipsoidUnionPushOut::buildAxisBins(int axis)
 	}
 }
 
-bool btEllipsoidUnionPushOut::axisRaysEscape(int axis, const btVector3& p) const
+int btEllipsoidUnionPushOut::axisRaysEscape(int axis, const btVector3& p) const
 {
 	// The two rays p + s e_k and p - s e_k (s > 0) at once. An ellipsoid lies in its world box, so only one whose box
 	// holds p's two other coordinates can meet the line, and every such ellipsoid is listed in p's bin (the box meets
@@ -505,12 +525,38 @@ bool btEllipsoidUnionPushOut::axisRaysEscape(int axis, const btVector3& p) const
 		plusBlocked = plusBlocked || quadratic.exitAhead(disc);
 		minusBlocked = minusBlocked || btSqrt(disc) + quadratic.m_b > btScalar(0); // exitAhead of the reversed line
 		if (plusBlocked && minusBlocked)
+			return 0;
+	}
+	return plusBlocked ? -1 : 1;
+}
+
+bool btEllipsoidUnionPushOut::axisRayEscapes(int axis, int sign, const btVector3& p) const
+{
+	// One side of axisRaysEscape: the ray p + s sign e_k, s > 0.
+	const btEllipsoidWorldCache& cache = *m_cache;
+	const AxisBins& bins = m_axisBins[axis];
+	const int b = bins.binCoord(p[bins.m_axes[1]], 1) * bins.m_dims[0] + bins.binCoord(p[bins.m_axes[0]], 0);
+	const int a0 = bins.m_axes[0], a1 = bins.m_axes[1];
+	for (int i = bins.m_start[b]; i < bins.m_start[b + 1]; ++i)
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[bins.m_items[i]];
+		if (p[a0] < e.m_aabbMin[a0] || p[a0] > e.m_aabbMax[a0] || p[a1] < e.m_aabbMin[a1] || p[a1] > e.m_aabbMax[a1])
+			continue;
+		if (sign > 0 ? e.m_aabbMax[axis] < p[axis] : e.m_aabbMin[axis] > p[axis])
+			continue; // (the box lies behind the ray)
+		const btVector3 d(e.m_whiten[0][axis], e.m_whiten[1][axis], e.m_whiten[2][axis]);
+		const btUnitBallQuadratic quadratic =
+			btUnitBallQuadratic::ofLine(e.m_whiten * (p - e.m_center), sign > 0 ? d : -d);
+		const btScalar disc = quadratic.discriminant();
+		if (!(quadratic.m_a > btScalar(0)) || disc < btScalar(0))
+			continue;
+		if (quadratic.exitAhead(disc))
 			return false;
 	}
 	return true;
 }
 
-bool btEllipsoidUnionPushOut::someAxisRayEscapes(const btVector3& p) const
+int btEllipsoidUnionPushOut::someAxisRayEscapes(const btVector3& p) const
 {
 	// The cheap part of the escape test: the six axis rays on the bins, the axis whose nearer face of the union box
 	// is closest to p first (the way out of a point on the body's surface is mostly towards its nearest side).
@@ -525,7 +571,7 @@ bool btEllipsoidUnionPushOut::someAxisRayEscapes(const btVector3& p) const
 		for (int j = i; j > 0 && gap[order[j]] < gap[order[j - 1]]; --j)
 			btSwap(order[j], order[j - 1]);
 	for (int i = 0; i < 3; ++i)
-		if (axisRaysEscape(order[i], p))
-			return true;
-	return false;
+		if (const int side = axisRaysEscape(order[i], p))
+			return 1 + 2 * order[i] + (side < 0 ? 1 : 0);
+	return kNoEscapeHint;
 }

@@ -45,8 +45,17 @@ public:
 	/// from `from`, the point leaves along the shortest of the 26 lattice directions past the last chord (m_moved and
 	/// m_enclosed set, m_zeta at the exit); otherwise nothing moves (m_moved false; m_zeta is not computed then).
 	/// Call prepareEscapeRays for the cache's current state first.
+	/// \param hint (may be 0) the ray that escaped from this node last time (kNoEscapeHint at first), tried first and
+	/// updated. Only the order of the rays depends on it, never the outcome: a node escapes if any ray does.
 	void leaveEnclosedPocket(const btEllipsoidWorldCache& cache, const btVector3& from, btScalar skin,
-							 btPushOutResult& out);
+							 btPushOutResult& out, unsigned char* hint = 0);
+
+	/// Escape hints: 0 none; 1 + 2 k + (1 for -e_k) an axis ray; kLatticeHint + d lattice direction d (0..25).
+	enum
+	{
+		kNoEscapeHint = 0,
+		kLatticeHint = 7
+	};
 
 	/// Smallest zeta at p over every ellipsoid whose world box holds p (SIMD_INFINITY if none: then p is outside all);
 	/// \param which receives its index or -1.
@@ -107,10 +116,20 @@ private:
 	btScalar unionExitAlongRay(const btVector3& origin, const btVector3& dir, btScalar skin, int* exitEllipsoid);
 	btScalar realiseExit(const btVector3& origin, const btVector3& dir, btScalar skin, btVector3& out,
 						 int* exitEllipsoid, bool lastExit);
-	bool escapesUnion(const btVector3& p, const btVector3& preferred) const;
+	/// \param escaped (may be 0) gets the lattice index of the ray that left (-1: the preferred direction).
+	bool escapesUnion(const btVector3& p, const btVector3& preferred, int* escaped = 0) const;
+	/// The one ray p + s dir (s > 0) against every ellipsoid: true when none blocks it.
+	bool rayEscapes(const btVector3& p, const btVector3& dir) const;
 	void buildAxisBins(int axis);
-	bool axisRaysEscape(int axis, const btVector3& p) const;
-	bool someAxisRayEscapes(const btVector3& p) const;
+	/// The two rays p +- s e_axis on the bins: +1 when the + ray leaves the union, -1 when only the - ray does, 0
+	/// when both are blocked.
+	int axisRaysEscape(int axis, const btVector3& p) const;
+	/// The one ray p + s sign e_axis (sign +-1) on the bins.
+	bool axisRayEscapes(int axis, int sign, const btVector3& p) const;
+	/// The hint of the first axis ray that leaves the union (kNoEscapeHint: all six are blocked).
+	int someAxisRayEscapes(const btVector3& p) const;
+	/// The ray a hint names leaves the union (false for kNoEscapeHint or a hint out of range).
+	bool hintedRayEscapes(int hint, const btVector3& p) const;
 };
 
 #endif // BT_ELLIPSOID_UNION_PUSH_OUT_H

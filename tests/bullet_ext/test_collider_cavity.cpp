@@ -150,6 +150,28 @@ TEST_CASE("escape test: points in a sealed box's cavity leave it, points with a 
 			escape.leaveEnclosedPocket(cache, p, skin, out);
 			INFO("pose origin y " << pose.getOrigin().y() << ", local point " << local.x() << " " << local.y() << " "
 								  << local.z());
+			// The collider keeps per node the ray that left last time (the escape hint): it changes the order of the
+			// rays, never the outcome. Every hint (none, each axis ray, each lattice direction, out of range) gives
+			// the same result, and the hint written back names a ray that leaves: asked again with it, nothing changes.
+			for (int h = 0; h <= btEllipsoidUnionPushOut::kLatticeHint + 26; ++h)
+			{
+				unsigned char hint = (unsigned char)(h == btEllipsoidUnionPushOut::kLatticeHint + 26 ? 200 : h);
+				btPushOutResult hinted;
+				escape.leaveEnclosedPocket(cache, p, skin, hinted, &hint);
+				INFO("hint " << h);
+				REQUIRE(hinted.m_moved == out.m_moved);
+				if (out.m_moved)
+				{
+					CHECK(hinted.m_point == out.m_point);
+					CHECK(int(hint) == int(btEllipsoidUnionPushOut::kNoEscapeHint));
+					continue;
+				}
+				const unsigned char written = hint;
+				CHECK(int(written) != int(btEllipsoidUnionPushOut::kNoEscapeHint));
+				escape.leaveEnclosedPocket(cache, p, skin, hinted, &hint);
+				CHECK_FALSE(hinted.m_moved);
+				CHECK(int(hint) == int(written));
+			}
 			if (cavity)
 			{
 				// Enclosed: it must leave, outside every ellipsoid (1e-6: float rounding of zeta at unit scale) and
