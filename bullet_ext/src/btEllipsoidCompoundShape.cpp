@@ -602,8 +602,7 @@ void btEllipsoidWorldCache::buildGrid(bool animated)
 		m_dims[k] = btMax(1, btMin(int(kGridCellsLongestSide), int(size[k] * m_invCell) + 1));
 	// The lists of an animated compound hold each ellipsoid grown by its margin: E within `margin` of E_b meets a
 	// grown cell only if E_b meets that cell grown by `margin` more.
-	buildLists(m_cellDilation, m_cellStart, m_cellItems);
-	buildLists(m_wideDilation, m_wideStart, m_wideItems);
+	buildLists();
 	m_gridCenters.resize(n);
 	m_gridUnwhiten.resize(n);
 	for (int i = 0; i < n; ++i)
@@ -613,102 +612,143 @@ void btEllipsoidWorldCache::buildGrid(bool animated)
 	}
 }
 
-void btEllipsoidWorldCache::buildLists(btScalar dilation, btAlignedObjectArray<int>& start,
-									   btAlignedObjectArray<int>& items) const
+namespace
 {
-	const int n = m_shape->getNumEllipsoids();
-	const btScalar cell = m_cell;
-	const int cells = m_dims[0] * m_dims[1] * m_dims[2];
-	// A cell lists an ellipsoid if the ellipsoid may meet the cell grown by `dilation` cells on every side (the
-	// "grown cell", a cube of half-size h = cell (1/2 + dilation) around the cell centre m). Three conservative
-	// tests, each necessary for a meeting:
-	//  1. the ellipsoid's box overlaps the grown cell;
-	//  2. the grown cell's circumscribed sphere (radius rc = h sqrt(3)) meets it, i.e. m is in E + ball(rc). Tested
-	//     in the norm |x|_G of the ellipsoid G with semi-axes a + rc: for x = e + d, e in E, |d| <= rc, the triangle
-	//     inequality gives |x|_G <= max_k a_k / (a_k + rc) + rc / (min_k a_k + rc). (G alone does not contain
-	//     E + ball(rc) for thin ellipsoids: the rim of a 1000:1 disc displaced along its normal leaves G, which lost
-	//     candidates in the collider's property test.)
-	//  3. in E's whitened coordinates u = W (p - c) the cube is a parallelepiped around W (m - c) whose points are
-	//     within r = h max_s |W s| of it (s over the corner directions (+-1, +-1, +-1)), so it meets the unit ball
-	//     only if |W (m - c)| <= 1 + r (tighter than 2 along the long axes of elongated ellipsoids).
-	// Everything is relative to the grid origin (no large coordinates 1 km from the origin); the tests get a slack
-	// for rounding.
-	const btScalar slack = cell * btScalar(1e-4);
+/// Whether an ellipsoid may meet a grown cell: the cell of the grid grown by `half` - cell/2 on every side (a cube of
+/// half-size `half` around the cell centre m). Three conservative tests, each necessary for a meeting:
+///  1. the ellipsoid's box overlaps the grown cell;
+///  2. the grown cell's circumscribed sphere (radius rc = h sqrt(3)) meets it, i.e. m is in E + ball(rc). Tested
+///     in the norm |x|_G of the ellipsoid G with semi-axes a + rc: for x = e + d, e in E, |d| <= rc, the triangle
+///     inequality gives |x|_G <= max_k a_k / (a_k + rc) + rc / (min_k a_k + rc). (G alone does not contain
+///     E + ball(rc) for thin ellipsoids: the rim of a 1000:1 disc displaced along its normal leaves G, which lost
+///     candidates in the collider's property test.)
+///  3. in E's whitened coordinates u = W (p - c) the cube is a parallelepiped around W (m - c) whose points are
+///     within r = h max_s |W s| of it (s over the corner directions (+-1, +-1, +-1)), so it meets the unit ball
+///     only if |W (m - c)| <= 1 + r (tighter than 2 along the long axes of elongated ellipsoids).
+/// Everything is relative to the grid origin (no large coordinates 1 km from the origin); the tests get a slack
+/// for rounding.
+struct GrownCellTest
+{
+	btScalar m_half, m_slack, m_limit2, m_limitW2;
+	btMatrix3x3 m_whitenGrown, m_whiten;
+	btVector3 m_centreRel, m_boxMid, m_boxHalf;
+	int m_lo[3], m_hi[3]; ///< the cells whose grown cell the ellipsoid's box can overlap
 
+	GrownCellTest(const btEllipsoidLocalData& e, btScalar half, btScalar cell, const btVector3& gridOrigin,
+				  const int dims[3])
+		: m_half(half), m_slack(cell * btScalar(1e-4))
+	{
+		const btScalar rc = half * btSqrt(btScalar(3));
+		const btVector3 grown = e.m_semiAxes + btVector3(rc, rc, rc);
+		m_whitenGrown = e.m_basis.transpose();
+		m_whiten = e.m_basis.transpose();
+		for (int k = 0; k < 3; ++k)
+		{
+			m_whitenGrown[k] *= btScalar(1) / grown[k];
+			m_whiten[k] *= btScalar(1) / e.m_semiAxes[k];
+		}
+		const btScalar alpha = btMax(btMax(e.m_semiAxes.x() / grown.x(), e.m_semiAxes.y() / grown.y()),
+									 e.m_semiAxes.z() / grown.z());
+		const btScalar beta = rc / (e.m_semiAxes[e.m_semiAxes.minAxis()] + rc);
+		m_limit2 = (alpha + beta) * (alpha + beta) * btScalar(1.0001); // + rounding slack
+		btScalar reach = btScalar(0);
+		for (int corner = 0; corner < 4; ++corner)
+		{
+			const btVector3 s(btScalar(1), (corner & 1) ? btScalar(-1) : btScalar(1),
+							  (corner & 2) ? btScalar(-1) : btScalar(1));
+			reach = btMax(reach, (m_whiten * s).length());
+		}
+		const btScalar limitW = btScalar(1) + half * reach;
+		m_limitW2 = limitW * limitW * btScalar(1.0001); // + rounding slack
+		m_centreRel = e.m_center - gridOrigin;
+		const btVector3 boxLo = e.m_aabbMin - gridOrigin, boxHi = e.m_aabbMax - gridOrigin;
+		m_boxMid = (boxLo + boxHi) * btScalar(0.5);
+		m_boxHalf = (boxHi - boxLo) * btScalar(0.5);
+		const btScalar invCell = btScalar(1) / cell;
+		for (int k = 0; k < 3; ++k)
+		{
+			const btScalar fLo = (boxLo[k] - half + cell * btScalar(0.5)) * invCell - btScalar(1e-3);
+			const btScalar fHi = (boxHi[k] + half - cell * btScalar(0.5)) * invCell + btScalar(1e-3);
+			m_lo[k] = fLo > btScalar(0) ? btMin(int(fLo), dims[k] - 1) : 0;
+			m_hi[k] = fHi > btScalar(0) ? btMin(int(fHi), dims[k] - 1) : 0;
+		}
+	}
+
+	bool inRange(int x, int y, int z) const
+	{
+		return x >= m_lo[0] && x <= m_hi[0] && y >= m_lo[1] && y <= m_hi[1] && z >= m_lo[2] && z <= m_hi[2];
+	}
+
+	/// The ellipsoid may meet the grown cell centred at `centre` (relative to the grid origin).
+	bool meets(const btVector3& centre) const
+	{
+		const btVector3 gap = (centre - m_boxMid).absolute() - m_boxHalf;
+		if (gap.x() > m_half + m_slack || gap.y() > m_half + m_slack || gap.z() > m_half + m_slack)
+			return false;
+		if ((m_whitenGrown * (centre - m_centreRel)).length2() > m_limit2)
+			return false;
+		return (m_whiten * (centre - m_centreRel)).length2() <= m_limitW2;
+	}
+};
+
+/// CSR lists from (cell, item) pairs in item order: start has cells + 1 entries, each cell's items stay in order.
+void listsFromPairs(const btAlignedObjectArray<int>& pairs, int cells, btAlignedObjectArray<int>& start,
+					btAlignedObjectArray<int>& items, btAlignedObjectArray<int>& cursor)
+{
 	start.resize(cells + 1);
 	for (int c = 0; c <= cells; ++c)
 		start[c] = 0;
-	btAlignedObjectArray<int> cursor;
-	for (int pass = 0; pass < 2; ++pass)
+	const int count = pairs.size() / 2;
+	for (int p = 0; p < count; ++p)
+		++start[pairs[2 * p] + 1];
+	for (int c = 0; c < cells; ++c)
+		start[c + 1] += start[c];
+	items.resize(count);
+	cursor.resize(cells);
+	for (int c = 0; c < cells; ++c)
+		cursor[c] = start[c];
+	for (int p = 0; p < count; ++p)
+		items[cursor[pairs[2 * p]]++] = pairs[2 * p + 1];
+}
+} // namespace
+
+void btEllipsoidWorldCache::buildLists()
+{
+	// A cell lists an ellipsoid if the ellipsoid may meet the cell grown by the dilation (and the ellipsoid's margin)
+	// on every side (GrownCellTest). One walk over each ellipsoid's wide range fills both lists: the narrow grown cell
+	// is tested only where its range holds the cell.
+	const int n = m_shape->getNumEllipsoids();
+	const btScalar cell = m_cell;
+	const int cells = m_dims[0] * m_dims[1] * m_dims[2];
+	m_cellPairs.resize(0);
+	m_widePairs.resize(0);
+	for (int i = 0; i < n; ++i)
 	{
-		if (pass == 1)
-		{
-			for (int c = 0; c < cells; ++c)
-				start[c + 1] += start[c];
-			items.resize(start[cells]);
-			cursor.resize(cells);
-			for (int c = 0; c < cells; ++c)
-				cursor[c] = start[c];
-		}
-		for (int i = 0; i < n; ++i)
-		{
-			const btEllipsoidLocalData& e = m_shape->getEllipsoid(i);
-			// The grown cell of this ellipsoid's lists: the dilation plus its margin (gridCovers).
-			const btScalar half = cell * (btScalar(0.5) + dilation) + (m_gridMargins.size() == n ? m_gridMargins[i] : btScalar(0));
-			const btScalar rc = half * btSqrt(btScalar(3));
-			const btVector3 grown = e.m_semiAxes + btVector3(rc, rc, rc);
-			btMatrix3x3 whitenGrown = e.m_basis.transpose();
-			btMatrix3x3 whiten = e.m_basis.transpose();
-			for (int k = 0; k < 3; ++k)
-			{
-				whitenGrown[k] *= btScalar(1) / grown[k];
-				whiten[k] *= btScalar(1) / e.m_semiAxes[k];
-			}
-			const btScalar alpha = btMax(btMax(e.m_semiAxes.x() / grown.x(), e.m_semiAxes.y() / grown.y()),
-										 e.m_semiAxes.z() / grown.z());
-			const btScalar beta = rc / (e.m_semiAxes[e.m_semiAxes.minAxis()] + rc);
-			const btScalar limit2 = (alpha + beta) * (alpha + beta) * btScalar(1.0001); // + rounding slack
-			btScalar reach = btScalar(0);
-			for (int corner = 0; corner < 4; ++corner)
-			{
-				const btVector3 s(btScalar(1), (corner & 1) ? btScalar(-1) : btScalar(1),
-								  (corner & 2) ? btScalar(-1) : btScalar(1));
-				reach = btMax(reach, (whiten * s).length());
-			}
-			const btScalar limitW = btScalar(1) + half * reach;
-			const btScalar limitW2 = limitW * limitW * btScalar(1.0001); // + rounding slack
-			const btVector3 centreRel = e.m_center - m_gridOrigin;
-			const btVector3 boxLo = e.m_aabbMin - m_gridOrigin, boxHi = e.m_aabbMax - m_gridOrigin;
-			const btVector3 boxMid = (boxLo + boxHi) * btScalar(0.5), boxHalf = (boxHi - boxLo) * btScalar(0.5);
-			int lo3[3], hi3[3];
-			for (int k = 0; k < 3; ++k)
-			{
-				const btScalar fLo = (boxLo[k] - half + cell * btScalar(0.5)) * m_invCell - btScalar(1e-3);
-				const btScalar fHi = (boxHi[k] + half - cell * btScalar(0.5)) * m_invCell + btScalar(1e-3);
-				lo3[k] = fLo > btScalar(0) ? btMin(int(fLo), m_dims[k] - 1) : 0;
-				hi3[k] = fHi > btScalar(0) ? btMin(int(fHi), m_dims[k] - 1) : 0;
-			}
-			for (int z = lo3[2]; z <= hi3[2]; ++z)
-				for (int y = lo3[1]; y <= hi3[1]; ++y)
-					for (int x = lo3[0]; x <= hi3[0]; ++x)
+		const btEllipsoidLocalData& e = m_shape->getEllipsoid(i);
+		const btScalar margin = m_gridMargins.size() == n ? m_gridMargins[i] : btScalar(0);
+		const GrownCellTest narrow(e, cell * (btScalar(0.5) + m_cellDilation) + margin, cell, m_gridOrigin, m_dims);
+		const GrownCellTest wide(e, cell * (btScalar(0.5) + m_wideDilation) + margin, cell, m_gridOrigin, m_dims);
+		for (int z = wide.m_lo[2]; z <= wide.m_hi[2]; ++z)
+			for (int y = wide.m_lo[1]; y <= wide.m_hi[1]; ++y)
+				for (int x = wide.m_lo[0]; x <= wide.m_hi[0]; ++x)
+				{
+					const btVector3 centre = btVector3(btScalar(x) + btScalar(0.5), btScalar(y) + btScalar(0.5),
+													   btScalar(z) + btScalar(0.5)) * cell;
+					const int c = (z * m_dims[1] + y) * m_dims[0] + x;
+					if (wide.meets(centre))
 					{
-						const btVector3 centre = btVector3(btScalar(x) + btScalar(0.5), btScalar(y) + btScalar(0.5),
-														   btScalar(z) + btScalar(0.5)) * cell;
-						const btVector3 gap = (centre - boxMid).absolute() - boxHalf;
-						if (gap.x() > half + slack || gap.y() > half + slack || gap.z() > half + slack)
-							continue;
-						if ((whitenGrown * (centre - centreRel)).length2() > limit2)
-							continue;
-						if ((whiten * (centre - centreRel)).length2() > limitW2)
-							continue;
-						const int c = (z * m_dims[1] + y) * m_dims[0] + x;
-						if (pass == 0)
-							++start[c + 1];
-						else
-							items[cursor[c]++] = i;
+						m_widePairs.push_back(c);
+						m_widePairs.push_back(i);
 					}
-		}
+					if (narrow.inRange(x, y, z) && narrow.meets(centre))
+					{
+						m_cellPairs.push_back(c);
+						m_cellPairs.push_back(i);
+					}
+				}
 	}
+	listsFromPairs(m_cellPairs, cells, m_cellStart, m_cellItems, m_pairCursor);
+	listsFromPairs(m_widePairs, cells, m_wideStart, m_wideItems, m_pairCursor);
 }
 
 btScalar btEllipsoidWorldCache::zeta(int i, const btVector3& worldPoint) const

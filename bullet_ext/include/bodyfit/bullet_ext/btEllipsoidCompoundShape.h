@@ -378,8 +378,12 @@ private:
 	btScalar driftSinceBuild(int i) const;
 	/// Sets m_gridMargins and m_gridMargin for a build (`cell`: the cell size before the grid grows by the margin).
 	void chooseGridMargins(bool animated, btScalar cell);
-	/// Lists of the cells grown by `dilation` cells, each ellipsoid grown by its margin as well.
-	void buildLists(btScalar dilation, btAlignedObjectArray<int>& start, btAlignedObjectArray<int>& items) const;
+	/// The cell lists (cells grown by m_cellDilation) and the wide lists (by m_wideDilation), each ellipsoid grown by
+	/// its margin as well.
+	void buildLists();
+	btAlignedObjectArray<int> m_cellPairs; ///< scratch of buildLists: (cell, ellipsoid) pairs of each list
+	btAlignedObjectArray<int> m_widePairs;
+	btAlignedObjectArray<int> m_pairCursor;
 	/// Cell index along axis k of a world coordinate, clamped to the grid (NaN and huge values included).
 	int cellCoord(btScalar value, int k) const
 	{
