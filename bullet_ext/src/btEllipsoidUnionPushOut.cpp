@@ -412,19 +412,26 @@ bool btEllipsoidUnionPushOut::escapesUnion(const btVector3& p, const btVector3& 
 	return false;
 }
 
+namespace
+{
+/// The ellipsoid meets the ray p + s dir, s > 0 (given as W dir, dir's image in its whitened coordinates): the far
+/// root of the line's quadratic lies ahead. The quadratic is set up relative to the centre.
+bool blocksRay(const btEllipsoidWorldCache::Entry& e, const btVector3& p, const btVector3& whitenedDir)
+{
+	const btUnitBallQuadratic quadratic = btUnitBallQuadratic::ofLine(e.m_whiten * (p - e.m_center), whitenedDir);
+	const btScalar disc = quadratic.discriminant();
+	if (!(quadratic.m_a > btScalar(0)) || disc < btScalar(0))
+		return false;
+	return quadratic.exitAhead(disc);
+}
+} // namespace
+
 bool btEllipsoidUnionPushOut::rayEscapes(const btVector3& p, const btVector3& dir) const
 {
 	const btEllipsoidWorldCache& cache = *m_cache;
 	for (int k = 0; k < cache.size(); ++k)
-	{
-		const btEllipsoidWorldCache::Entry& e = cache[k];
-		const btUnitBallQuadratic quadratic = btUnitBallQuadratic::ofLine(e.m_whiten * (p - e.m_center), e.m_whiten * dir);
-		const btScalar disc = quadratic.discriminant();
-		if (!(quadratic.m_a > btScalar(0)) || disc < btScalar(0))
-			continue;
-		if (quadratic.exitAhead(disc))
+		if (blocksRay(cache[k], p, cache[k].m_whiten * dir))
 			return false;
-	}
 	return true;
 }
 
@@ -545,12 +552,7 @@ bool btEllipsoidUnionPushOut::axisRayEscapes(int axis, int sign, const btVector3
 		if (sign > 0 ? e.m_aabbMax[axis] < p[axis] : e.m_aabbMin[axis] > p[axis])
 			continue; // (the box lies behind the ray)
 		const btVector3 d(e.m_whiten[0][axis], e.m_whiten[1][axis], e.m_whiten[2][axis]);
-		const btUnitBallQuadratic quadratic =
-			btUnitBallQuadratic::ofLine(e.m_whiten * (p - e.m_center), sign > 0 ? d : -d);
-		const btScalar disc = quadratic.discriminant();
-		if (!(quadratic.m_a > btScalar(0)) || disc < btScalar(0))
-			continue;
-		if (quadratic.exitAhead(disc))
+		if (blocksRay(e, p, sign > 0 ? d : -d))
 			return false;
 	}
 	return true;
