@@ -163,6 +163,9 @@ struct PlaneTriangle
 struct MeshTopology
 {
 	std::vector<int> start, faces; ///< faces of vertex v: faces[start[v] .. start[v+1])
+	/// The faces holding face f's edge k (corners k, k+1), in the order of the fan of corner k: onEdge[edgeStart[3 f +
+	/// k] .. edgeStart[3 f + k + 1]). Found once here: the bake needs them for the pseudo-normals and the edge regions.
+	std::vector<int> edgeStart, onEdge;
 	std::vector<Eigen::Vector3d> faceN, vertexN, edgeN;
 
 	explicit MeshTopology(const TriMesh& mesh)
@@ -180,30 +183,39 @@ struct MeshTopology
 			for (int k = 0; k < 3; ++k)
 				faces[std::size_t(fill[std::size_t(mesh.F(f, k))]++)] = f;
 		normals(mesh);
+		edgeFaceLists(mesh);
 		edgeN.assign(std::size_t(nf) * 3, Eigen::Vector3d::Zero());
-		std::vector<int> onEdge;
+		for (std::size_t e = 0; e < std::size_t(nf) * 3; ++e)
+			for (int s = edgeStart[e]; s < edgeStart[e + 1]; ++s)
+				edgeN[e] += faceN[std::size_t(onEdge[std::size_t(s)])];
+	}
+
+	/// The faces holding face f's edge k: [first, end) of onEdge.
+	int edgeBegin(int f, int k) const { return edgeStart[std::size_t(f) * 3 + std::size_t(k)]; }
+	int edgeEnd(int f, int k) const { return edgeStart[std::size_t(f) * 3 + std::size_t(k) + 1]; }
+
+private:
+	/// edgeStart and onEdge: per face edge (a, b), the faces of a's fan that also hold b.
+	void edgeFaceLists(const TriMesh& mesh)
+	{
+		const int nf = mesh.faceCount();
+		edgeStart.assign(std::size_t(nf) * 3 + 1, 0);
+		onEdge.clear();
+		onEdge.reserve(std::size_t(nf) * 6);
 		for (int f = 0; f < nf; ++f)
 			for (int k = 0; k < 3; ++k)
 			{
-				edgeFaces(mesh, mesh.F(f, k), mesh.F(f, (k + 1) % 3), onEdge);
-				for (int g : onEdge)
-					edgeN[std::size_t(f) * 3 + std::size_t(k)] += faceN[std::size_t(g)];
+				const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3);
+				for (int s = start[std::size_t(a)]; s < start[std::size_t(a) + 1]; ++s)
+				{
+					const int g = faces[std::size_t(s)];
+					if (mesh.F(g, 0) == b || mesh.F(g, 1) == b || mesh.F(g, 2) == b)
+						onEdge.push_back(g);
+				}
+				edgeStart[std::size_t(f) * 3 + std::size_t(k) + 1] = int(onEdge.size());
 			}
 	}
 
-	/// The faces holding the edge (a, b), into `out`.
-	void edgeFaces(const TriMesh& mesh, int a, int b, std::vector<int>& out) const
-	{
-		out.clear();
-		for (int s = start[std::size_t(a)]; s < start[std::size_t(a) + 1]; ++s)
-		{
-			const int g = faces[std::size_t(s)];
-			if (mesh.F(g, 0) == b || mesh.F(g, 1) == b || mesh.F(g, 2) == b)
-				out.push_back(g);
-		}
-	}
-
-private:
 	void normals(const TriMesh& mesh)
 	{
 		faceN.assign(std::size_t(mesh.faceCount()), Eigen::Vector3d::Zero());
@@ -440,6 +452,7 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 	else if (lo[sa] > slab.hi || hi[sa] < slab.lo)
 		return;
 	const double step[3] = {L.h * T.u[ra], L.h * T.v[ra], L.h * T.n[ra]};
+	const long long stride = ra == 0 ? 1 : ra == 1 ? B : B * B; // of the owned index, within a brick
 	for (long long V = lo[va]; V <= hi[va]; ++V)
 	{
 		for (int k = 0; k < planes; ++k)
@@ -464,9 +477,17 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 			const Eigen::Vector3d d = L.point(P[0], P[1], P[2]) - T.v0;
 			double s = d.dot(T.u), t = d.dot(T.v), w = d.dot(T.n);
 			const long long last = ra == sa ? std::min((long long)std::floor(ra1), slab.hi) : (long long)std::floor(ra1);
-			for (; P[ra] <= last; ++P[ra], s += step[0], t += step[1], w += step[2])
+			// The owned index found through the brick index where the row enters a brick, then a stride along it.
+			long long p = -1;
+			for (const long long first = P[ra]; P[ra] <= last; ++P[ra], s += step[0], t += step[1], w += step[2])
+			{
+				if (P[ra] == first || P[ra] % B == 0)
+					p = owned.index(L, P[0], P[1], P[2]);
+				else if (p >= 0)
+					p += stride;
 				if (ra != sa || P[sa] >= slab.lo)
-					measure(T, s, t, w, owned.index(L, P[0], P[1], P[2]), owned);
+					measure(T, s, t, w, p, owned);
+			}
 		}
 	}
 }
@@ -600,9 +621,10 @@ void exactDistancesInSlab(const TriMesh& mesh, const MeshTopology& topo, const s
 		for (int k = 0; k < 3; ++k)
 		{
 			const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3);
-			topo.edgeFaces(mesh, a, b, faces);
-			faces.erase(std::remove_if(faces.begin(), faces.end(), [&](int g) { return planeOf[std::size_t(g)] < 0; }),
-						faces.end());
+			faces.clear(); // the non-degenerate faces on the edge
+			for (int s = topo.edgeBegin(f, k); s < topo.edgeEnd(f, k); ++s)
+				if (planeOf[std::size_t(topo.onEdge[std::size_t(s)])] >= 0)
+					faces.push_back(topo.onEdge[std::size_t(s)]);
 			if (faces.front() != f)
 				continue; // each edge once, from its first face
 			edgeRegion(mesh, topo, a, b, faces, clamp, R);
@@ -936,41 +958,54 @@ bool lowerSkinReading(const Lattice& L, const CellLocation& c, OwnedPoints& owne
 	return true;
 }
 
+/// The cells the skin samples read, located once (the lowering and the final reading both need them), in sample
+/// order, and the order of the lowering: by brick layer in y, in sample order within a layer (a counting sort). A
+/// sample off the grid (which cannot happen: the grid holds the mesh's box) is left out, as sample() would read +clamp
+/// there.
+struct SkinCells
+{
+	std::vector<CellLocation> cell;
+	std::vector<int> order;      ///< cells by layer: layer j's are order[layerStart[j] .. layerStart[j + 1])
+	std::vector<int> layerStart;
+
+	SkinCells(const Lattice& L, const std::vector<Eigen::Vector3d>& samples)
+	{
+		const int layers = L.dims[kSlabAxis];
+		cell.reserve(samples.size());
+		layerStart.assign(std::size_t(layers) + 1, 0);
+		for (const Eigen::Vector3d& p : samples)
+		{
+			CellLocation c;
+			if (locateCell(L.origin, L.h, L.dims, p, c))
+				cell.push_back(c), ++layerStart[std::size_t(c.brick[kSlabAxis]) + 1];
+		}
+		for (int j = 0; j < layers; ++j)
+			layerStart[std::size_t(j) + 1] += layerStart[std::size_t(j)];
+		order.resize(cell.size());
+		std::vector<int> fill(layerStart.begin(), layerStart.end() - 1);
+		for (std::size_t i = 0; i < cell.size(); ++i)
+			order[std::size_t(fill[std::size_t(cell[i].brick[kSlabAxis])]++)] = int(i);
+	}
+};
+
 /// Step 4: every skin sample that reads > 0 is lowered to 0 (lowerSkinReading). Lowering never raises a reading, so
 /// one pass leaves no sample > 0, in any order. The order is fixed by the samples' brick layers in y: a sample reads
 /// and lowers lattice layers [j B, (j + 1) B] of its layer j, so the even layers are done in parallel (each in sample
 /// order), then the odd ones; the result is the same for any thread count. Marks the brick each sample is read from
 /// in `holdsSkin`; returns the number of samples that read > 0.
-int lowerSkinReadings(const Lattice& L, const std::vector<Eigen::Vector3d>& samples, OwnedPoints& owned,
+int lowerSkinReadings(const Lattice& L, const SkinCells& skin, OwnedPoints& owned,
 					  const std::vector<std::int8_t>& brickSign, int threads, std::vector<char>& holdsSkin)
 {
-	// The samples of each brick layer, in sample order (a counting sort; -1: off the grid, which cannot happen as
-	// the grid holds the mesh's box).
 	const int layers = L.dims[kSlabAxis];
-	std::vector<int> layerOf(samples.size(), -1), start(std::size_t(layers) + 1, 0);
-	for (std::size_t s = 0; s < samples.size(); ++s)
-	{
-		CellLocation c;
-		if (locateCell(L.origin, L.h, L.dims, samples[s], c))
-			layerOf[s] = c.brick[kSlabAxis], ++start[std::size_t(c.brick[kSlabAxis]) + 1];
-	}
-	for (int j = 0; j < layers; ++j)
-		start[std::size_t(j) + 1] += start[std::size_t(j)];
-	std::vector<int> order(std::size_t(start.back()));
-	std::vector<int> fill(start.begin(), start.end() - 1);
-	for (std::size_t s = 0; s < samples.size(); ++s)
-		if (layerOf[s] >= 0)
-			order[std::size_t(fill[std::size_t(layerOf[s])]++)] = int(s);
 	std::vector<int> lowered(std::size_t(layers), 0);
 	for (int parity = 0; parity < 2; ++parity)
 	{
 		const int count = (layers - parity + 1) / 2; // layers parity, parity + 2, ...
 		parallelRanges(count, threads, [&](int first, int end) {
 			for (int j = parity + 2 * first; j < parity + 2 * end; j += 2)
-				for (int r = start[std::size_t(j)]; r < start[std::size_t(j) + 1]; ++r)
+				for (int r = skin.layerStart[std::size_t(j)]; r < skin.layerStart[std::size_t(j) + 1]; ++r)
 				{
-					CellLocation c;
-					locateCell(L.origin, L.h, L.dims, samples[std::size_t(order[std::size_t(r)])], c);
+					const CellLocation& c = skin.cell[std::size_t(skin.order[std::size_t(r)])];
 					holdsSkin[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))] = 1;
 					lowered[std::size_t(j)] += lowerSkinReading(L, c, owned, brickSign) ? 1 : 0;
 				}
@@ -985,20 +1020,17 @@ int lowerSkinReadings(const Lattice& L, const std::vector<Eigen::Vector3d>& samp
 /// The largest |reading| at the skin samples (metres; the true distance there is 0), read as sample() reads the
 /// stored field: the bricks holding skin samples are stored, with the owned points' values. On `threads` threads (a
 /// maximum does not depend on the order).
-double largestSkinReading(const Lattice& L, const std::vector<Eigen::Vector3d>& samples, const OwnedPoints& owned,
+double largestSkinReading(const Lattice& L, const SkinCells& skin, const OwnedPoints& owned,
 						  const std::vector<std::int8_t>& brickSign, double quantum, double clamp, int threads)
 {
-	const int n = int(samples.size());
+	const int n = int(skin.cell.size());
 	std::vector<double> worst(std::size_t(std::max(1, std::min(threads, n))), 0.0);
 	parallelParts(n, threads, [&](int part, int first, int end) {
 		for (int i = first; i < end; ++i)
-		{
-			CellLocation c;
-			if (locateCell(L.origin, L.h, L.dims, samples[std::size_t(i)], c))
-				worst[std::size_t(part)] =
-					std::max(worst[std::size_t(part)],
-							 std::abs(std::clamp(CellCorners(L, owned, brickSign, c).reading(owned) * quantum, -clamp, clamp)));
-		}
+			worst[std::size_t(part)] =
+				std::max(worst[std::size_t(part)],
+						 std::abs(std::clamp(CellCorners(L, owned, brickSign, skin.cell[std::size_t(i)]).reading(owned) * quantum,
+											 -clamp, clamp)));
 	});
 	return *std::max_element(worst.begin(), worst.end());
 }
@@ -1186,7 +1218,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	field.nx = L.dims[0], field.ny = L.dims[1], field.nz = L.dims[2];
 	quantise(owned, field.quantum(), threads);
 
-	const std::vector<Eigen::Vector3d> skin = skinSamplePoints(mesh, L.h);
+	const SkinCells skin(L, skinSamplePoints(mesh, L.h));
 	std::vector<char> stored(std::size_t(L.brickCount()), 0);
 	field.loweredSamples = lowerSkinReadings(L, skin, owned, brickSign, threads, stored);
 	const double halfDiagonal = 0.5 * std::sqrt(3.0) * B * L.h;
