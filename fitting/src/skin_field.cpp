@@ -806,31 +806,31 @@ void signFarPointsInSlab(const Lattice& L, int firstJ, int endJ, OwnedPoints& ow
 	const long long rowLength = L.ownedExtent(0);
 	std::vector<long long> exactX;
 	std::vector<std::int8_t> exactSign;
-	std::vector<int> nearI;
+	std::vector<int> nearI, nearSlot; // the near bricks of the brick row, and their slots
 	for (int k = 0; k < L.dims[2]; ++k)
 		for (int j = firstJ; j < endJ; ++j)
 		{
-			nearI.clear();
+			nearI.clear(), nearSlot.clear();
 			for (int i = 0; i < L.dims[0]; ++i)
-				if (owned.brickSlot[std::size_t(L.brickId(i, j, k))] >= 0)
-					nearI.push_back(i);
+				if (const int slot = owned.brickSlot[std::size_t(L.brickId(i, j, k))]; slot >= 0)
+					nearI.push_back(i), nearSlot.push_back(slot);
 			for (int c = 0; c < B; ++c)
 				for (int b = 0; b < B; ++b)
 				{
 					exactX.clear(), exactSign.clear();
-					for (int i : nearI)
+					for (std::size_t n = 0; n < nearI.size(); ++n)
+					{
+						const long long row = (long long)nearSlot[n] * kOwned + B * (b + B * c);
 						for (int a = 0; a < B; ++a)
-						{
-							const long long p = (long long)owned.brickSlot[std::size_t(L.brickId(i, j, k))] * kOwned + a + B * (b + B * c);
-							if (owned.touched(p))
-								exactX.push_back((long long)i * B + a), exactSign.push_back(owned.sign[std::size_t(p)]);
-						}
+							if (owned.touched(row + a))
+								exactX.push_back((long long)nearI[n] * B + a), exactSign.push_back(owned.sign[std::size_t(row + a)]);
+					}
 					std::size_t next = 0;
-					for (int i : nearI)
+					for (std::size_t n = 0; n < nearI.size(); ++n)
 						for (int a = 0; a < B; ++a)
 						{
-							const long long p = (long long)owned.brickSlot[std::size_t(L.brickId(i, j, k))] * kOwned + a + B * (b + B * c);
-							const long long X = (long long)i * B + a;
+							const long long p = (long long)nearSlot[n] * kOwned + a + B * (b + B * c);
+							const long long X = (long long)nearI[n] * B + a;
 							while (next < exactX.size() && exactX[next] < X)
 								++next;
 							if (!owned.touched(p))
@@ -1090,6 +1090,8 @@ void gatherBricks(const Lattice& L, const OwnedPoints& owned, const std::vector<
 {
 	field.brickIndex.assign(std::size_t(L.brickCount()), kFarOutside);
 	const double quantum = field.quantum();
+	field.samples.resize(std::size_t(std::count(stored.begin(), stored.end(), char(1))) * kSkinBrickSamples);
+	std::int16_t* out = field.samples.data();
 	int blocks = 0;
 	for (int brick = 0; brick < int(L.brickCount()); ++brick)
 	{
@@ -1118,12 +1120,12 @@ void gatherBricks(const Lattice& L, const OwnedPoints& owned, const std::vector<
 					const int n = (a == B) + 2 * (b == B) + 4 * (c == B);
 					if (slot[n] < 0)
 					{
-						field.samples.push_back(std::int16_t(constant[n]));
+						*out++ = std::int16_t(constant[n]);
 						continue;
 					}
 					const std::size_t p = std::size_t(slot[n]) * kOwned + std::size_t(a % B + B * (b % B + B * (c % B)));
 					const int q = owned.quanta[p];
-					field.samples.push_back(std::int16_t(q));
+					*out++ = std::int16_t(q);
 					if (owned.touched((long long)p))
 					{
 						const double exact = owned.sign[p] * std::sqrt(double(owned.best2[p]));
@@ -1149,8 +1151,23 @@ void checkMesh(const TriMesh& mesh)
 std::vector<Eigen::Vector3d> skinSamplePoints(const TriMesh& mesh, double voxel)
 {
 	auto divisions = [voxel](double length) { return int(std::clamp(std::ceil(length / voxel), 3.0, 64.0)); };
+	// Counted first: the points are ~20 per face at a 5 mm voxel, and growing the vector would copy them.
+	std::size_t count = std::size_t(mesh.vertexCount());
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		double longest = 0.0;
+		for (int k = 0; k < 3; ++k)
+		{
+			const double length = (mesh.V.row(mesh.F(f, (k + 1) % 3)) - mesh.V.row(mesh.F(f, k))).norm();
+			longest = std::max(longest, length);
+			if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3))
+				count += std::size_t(divisions(length) - 1);
+		}
+		const std::size_t n = std::size_t(divisions(longest));
+		count += (n - 1) * (n - 2) / 2; // i, j >= 1, i + j <= n - 1
+	}
 	std::vector<Eigen::Vector3d> out;
-	out.reserve(std::size_t(mesh.vertexCount() + 4 * mesh.faceCount()));
+	out.reserve(count);
 	for (int v = 0; v < mesh.vertexCount(); ++v)
 		out.push_back(mesh.V.row(v).transpose());
 	for (int f = 0; f < mesh.faceCount(); ++f)
