@@ -432,17 +432,36 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 	constexpr int kMaxPlanes = 32;  // more (a vertex of valence > 32) are dropped: the region only grows
 	const int ra = R.axis, ua = (R.axis + 1) % 3, va = (R.axis + 2) % 3;
 	const int planes = std::min(int(R.n.size()), kMaxPlanes);
+	// The planes sorted by kind: [0, upper) bound r above, [upper, lower) below, [lower, planes) do not depend on r,
+	// so that a row's interval is a branch-free min and max (both exact, so the order of the planes does not matter).
 	double c[kMaxPlanes], du[kMaxPlanes], dv[kMaxPlanes], inv[kMaxPlanes], atV[kMaxPlanes];
-	int kind[kMaxPlanes]; // +1: bounds r above, -1: below, 0: does not depend on r
+	int upper = 0, lower = 0;
+	for (int kind = 1; kind >= -1; kind -= 2)
+	{
+		for (int k = 0; k < planes; ++k)
+		{
+			const Eigen::Vector3d& n = R.n[std::size_t(k)];
+			const double dr = L.h * n[ra];
+			if (!(kind > 0 ? dr > 1e-15 : dr < -1e-15))
+				continue;
+			c[lower] = n.dot(L.origin) - R.b[std::size_t(k)] - kSlack;
+			du[lower] = L.h * n[ua];
+			dv[lower] = L.h * n[va];
+			inv[lower++] = -1.0 / dr;
+		}
+		if (kind > 0)
+			upper = lower;
+	}
+	const int constant = lower;
 	for (int k = 0; k < planes; ++k)
 	{
 		const Eigen::Vector3d& n = R.n[std::size_t(k)];
 		const double dr = L.h * n[ra];
-		c[k] = n.dot(L.origin) - R.b[std::size_t(k)] - kSlack;
-		du[k] = L.h * n[ua];
-		dv[k] = L.h * n[va];
-		kind[k] = dr > 1e-15 ? 1 : dr < -1e-15 ? -1 : 0;
-		inv[k] = kind[k] != 0 ? -1.0 / dr : 0.0;
+		if (dr > 1e-15 || dr < -1e-15)
+			continue;
+		c[lower] = n.dot(L.origin) - R.b[std::size_t(k)] - kSlack;
+		du[lower] = L.h * n[ua];
+		dv[lower++] = L.h * n[va];
 	}
 	long long lo[3], hi[3], P[3];
 	latticeRange(L, R.lo, R.hi, 0.0, lo, hi);
@@ -455,22 +474,19 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 	const long long stride = ra == 0 ? 1 : ra == 1 ? B : B * B; // of the owned index, within a brick
 	for (long long V = lo[va]; V <= hi[va]; ++V)
 	{
-		for (int k = 0; k < planes; ++k)
+		for (int k = 0; k < lower; ++k)
 			atV[k] = c[k] + dv[k] * double(V);
 		for (long long U = lo[ua]; U <= hi[ua]; ++U)
 		{
 			double ra0 = double(lo[ra]), ra1 = double(hi[ra]);
-			for (int k = 0; k < planes && ra0 <= ra1; ++k)
-			{
-				const double c0 = atV[k] + du[k] * double(U); // c0 + dr r <= 0
-				if (kind[k] > 0)
-					ra1 = std::min(ra1, c0 * inv[k]);
-				else if (kind[k] < 0)
-					ra0 = std::max(ra0, c0 * inv[k]);
-				else if (c0 > 0.0)
-					ra1 = ra0 - 1.0;
-			}
-			if (ra0 > ra1)
+			bool outside = false; // a plane that does not depend on r excludes the row
+			for (int k = constant; k < lower; ++k)
+				outside = outside || atV[k] + du[k] * double(U) > 0.0;
+			for (int k = 0; k < upper; ++k) // c0 + dr r <= 0 with c0 = atV + du U
+				ra1 = std::min(ra1, (atV[k] + du[k] * double(U)) * inv[k]);
+			for (int k = upper; k < constant; ++k)
+				ra0 = std::max(ra0, (atV[k] + du[k] * double(U)) * inv[k]);
+			if (outside || ra0 > ra1)
 				continue;
 			// The row's points in T's plane frame: from its first point, one lattice step along ra at a time.
 			P[ua] = U, P[va] = V, P[ra] = (long long)std::ceil(ra0);
