@@ -404,6 +404,7 @@ struct FeatureRegion
 	int axis = 0;                   ///< the rows of the scan run along this axis
 	std::vector<Eigen::Vector3d> n; ///< unit normals
 	std::vector<double> b;
+	std::vector<Eigen::Vector3d> rays; ///< scratch of vertexConeBox, kept to reuse its storage
 
 	/// Box, and rows along the axis nearest `normal`.
 	void reset(const Eigen::Vector3d& boxLo, const Eigen::Vector3d& boxHi, const Eigen::Vector3d& normal)
@@ -564,20 +565,30 @@ void edgeRegion(const TriMesh& mesh, const MeshTopology& topo, int a, int b, con
 /// their mean a with the half-angle t of the widest, where |d_i| <= clamp (|a_i| + sin t). False when the cone is
 /// {0} (a saddle: no point but v has v as its nearest point). A wide cone (or one holding a line) gets the ball's box.
 bool vertexConeBox(const Eigen::Vector3d& pv, const std::vector<Eigen::Vector3d>& edges, double clamp,
-				   Eigen::Vector3d& lo, Eigen::Vector3d& hi)
+				   std::vector<Eigen::Vector3d>& rays, Eigen::Vector3d& lo, Eigen::Vector3d& hi)
 {
 	constexpr double kTolerance = 1e-9;
 	Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-	std::vector<Eigen::Vector3d> rays;
+	rays.clear();
 	for (std::size_t i = 0; i < edges.size(); ++i)
 		for (std::size_t j = i + 1; j < edges.size(); ++j)
 		{
 			const Eigen::Vector3d r = edges[i].cross(edges[j]);
 			if (!(r.norm() > 1e-12))
 				continue;
-			for (const Eigen::Vector3d& ray : {Eigen::Vector3d(r.normalized()), Eigen::Vector3d(-r.normalized())})
-				if (std::all_of(edges.begin(), edges.end(), [&](const Eigen::Vector3d& e) { return ray.dot(e) <= kTolerance; }))
-					rays.push_back(ray), sum += ray;
+			// Both directions of the line at once: (-r) . e is exactly -(r . e) (rounding is symmetric in sign).
+			const Eigen::Vector3d ray = r.normalized();
+			bool plus = true, minus = true;
+			for (const Eigen::Vector3d& e : edges)
+			{
+				const double d = ray.dot(e);
+				plus = plus && d <= kTolerance;
+				minus = minus && -d <= kTolerance;
+			}
+			if (plus)
+				rays.push_back(ray), sum += ray;
+			if (minus)
+				rays.push_back(-ray), sum += -ray;
 		}
 	if (rays.empty())
 		return false;
@@ -611,7 +622,7 @@ bool vertexRegion(const TriMesh& mesh, const MeshTopology& topo, const std::vect
 			if (mesh.F(g, k) == v)
 				R.add((mesh.V.row(mesh.F(g, (k + 1) % 3)).transpose() - pv).normalized(), pv);
 	}
-	return vertexConeBox(pv, R.n, clamp, R.lo, R.hi);
+	return vertexConeBox(pv, R.n, clamp, R.rays, R.lo, R.hi);
 }
 
 /// Step 2 for the points of one slab: every lattice point within clamp of the skin gets its exact nearest distance
@@ -735,11 +746,23 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints&
 		return q >= 0 && owned.sign[std::size_t(p)] != owned.sign[std::size_t(q)] &&
 			   std::abs(signedDistance(p) - signedDistance(q)) > limit;
 	};
-	// The suspect pairs, found per slab of slots in parallel and queued in slot order.
+	// The suspect pairs, found per slab of slots in parallel and queued in slot order. A point on a brick's upper face
+	// finds its +axis neighbour in the slot of the brick above (-1: not near, or off the grid).
 	const int slots = int(owned.slotBrick.size());
+	std::vector<int> above(std::size_t(slots) * 3, -1);
+	for (int slot = 0; slot < slots; ++slot)
+	{
+		const int brick = owned.slotBrick[std::size_t(slot)];
+		const int id[3] = {brick % L.dims[0], (brick / L.dims[0]) % L.dims[1], brick / (L.dims[0] * L.dims[1])};
+		for (int axis = 0; axis < 3; ++axis)
+		{
+			int next[3] = {id[0], id[1], id[2]};
+			if (++next[axis] < L.dims[axis])
+				above[std::size_t(slot) * 3 + std::size_t(axis)] = owned.brickSlot[std::size_t(L.brickId(next[0], next[1], next[2]))];
+		}
+	}
 	std::vector<std::vector<long long>> pairs(std::size_t(std::max(1, std::min(threads, slots))));
 	parallelParts(slots, threads, [&](int part, int first, int end) {
-		long long P[3];
 		for (long long slot = first; slot < end; ++slot)
 			for (int c = 0; c < B; ++c)
 				for (int b = 0; b < B; ++b)
@@ -751,11 +774,12 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints&
 						const int local[3] = {a, b, c}, stride[3] = {1, B, B * B};
 						for (int axis = 0; axis < 3; ++axis)
 						{
-							long long q = -1; // the +axis neighbour: in the same brick, or found through the lattice
+							long long q = -1; // the +axis neighbour: in the same brick, or at local 0 of the brick above
 							if (local[axis] < B - 1)
-								q = owned.touched(p + stride[axis]) ? p + stride[axis] : -1;
-							else
-								latticeOf(L, owned, p, P), q = exactNeighbour(P, axis, 1);
+								q = p + stride[axis];
+							else if (const int next = above[std::size_t(slot) * 3 + std::size_t(axis)]; next >= 0)
+								q = (long long)next * kOwned + (p % kOwned) - (long long)(B - 1) * stride[axis];
+							q = q >= 0 && owned.touched(q) ? q : -1;
 							if (suspect(p, q))
 								pairs[std::size_t(part)].push_back(p), pairs[std::size_t(part)].push_back(q);
 						}
