@@ -954,13 +954,29 @@ struct CellCorners
 				point[n] = base + (n & 1) + B * ((n >> 1) & 1) + B * B * (n >> 2);
 			return;
 		}
-		const long long X = (long long)c.brick[0] * B + c.cell[0], Y = (long long)c.brick[1] * B + c.cell[1],
-						Z = (long long)c.brick[2] * B + c.cell[2];
+		// A cell on the brick's upper faces: a corner at local B is local 0 of the brick above on that axis (the
+		// same values as owned.index and latticeQuanta give, without the lattice divisions).
 		for (int n = 0; n < 8; ++n)
 		{
-			point[n] = owned.index(L, X + (n & 1), Y + ((n >> 1) & 1), Z + (n >> 2));
-			if (point[n] < 0)
-				constant[n] = latticeQuanta(L, owned, brickSign, X + (n & 1), Y + ((n >> 1) & 1), Z + (n >> 2));
+			int brick[3], local[3];
+			bool onGrid = true;
+			for (int k = 0; k < 3; ++k)
+			{
+				const int l = c.cell[k] + ((n >> k) & 1);
+				brick[k] = c.brick[k] + (l == B ? 1 : 0), local[k] = l == B ? 0 : l;
+				onGrid = onGrid && brick[k] < L.dims[k];
+			}
+			point[n] = -1;
+			if (!onGrid)
+			{
+				constant[n] = kMaxQuanta;
+				continue;
+			}
+			const int id = L.brickId(brick[0], brick[1], brick[2]);
+			if (const int s = owned.brickSlot[std::size_t(id)]; s >= 0)
+				point[n] = (long long)s * kOwned + local[0] + B * (local[1] + B * local[2]);
+			else
+				constant[n] = brickSign[std::size_t(id)] < 0 ? -kMaxQuanta : kMaxQuanta;
 		}
 	}
 
