@@ -955,26 +955,29 @@ struct CellCorners
 			return;
 		}
 		// A cell on the brick's upper faces: a corner at local B is local 0 of the brick above on that axis (the
-		// same values as owned.index and latticeQuanta give, without the lattice divisions).
+		// same values as owned.index and latticeQuanta give, without the lattice divisions). Per axis, the brick and
+		// local coordinate of the cell's lower (0) and upper (1) corners.
+		int brick[3][2], local[3][2];
+		bool onGrid[3][2];
+		for (int k = 0; k < 3; ++k)
+		{
+			const bool carry = c.cell[k] == B - 1;
+			brick[k][0] = c.brick[k], local[k][0] = c.cell[k], onGrid[k][0] = true;
+			brick[k][1] = c.brick[k] + (carry ? 1 : 0), local[k][1] = carry ? 0 : c.cell[k] + 1;
+			onGrid[k][1] = brick[k][1] < L.dims[k];
+		}
 		for (int n = 0; n < 8; ++n)
 		{
-			int brick[3], local[3];
-			bool onGrid = true;
-			for (int k = 0; k < 3; ++k)
-			{
-				const int l = c.cell[k] + ((n >> k) & 1);
-				brick[k] = c.brick[k] + (l == B ? 1 : 0), local[k] = l == B ? 0 : l;
-				onGrid = onGrid && brick[k] < L.dims[k];
-			}
+			const int x = n & 1, y = (n >> 1) & 1, z = n >> 2;
 			point[n] = -1;
-			if (!onGrid)
+			if (!(onGrid[0][x] && onGrid[1][y] && onGrid[2][z]))
 			{
 				constant[n] = kMaxQuanta;
 				continue;
 			}
-			const int id = L.brickId(brick[0], brick[1], brick[2]);
+			const int id = L.brickId(brick[0][x], brick[1][y], brick[2][z]);
 			if (const int s = owned.brickSlot[std::size_t(id)]; s >= 0)
-				point[n] = (long long)s * kOwned + local[0] + B * (local[1] + B * local[2]);
+				point[n] = (long long)s * kOwned + local[0][x] + B * (local[1][y] + B * local[2][z]);
 			else
 				constant[n] = brickSign[std::size_t(id)] < 0 ? -kMaxQuanta : kMaxQuanta;
 		}
@@ -1169,25 +1172,32 @@ void gatherBricks(const Lattice& L, const OwnedPoints& owned, const std::vector<
 			slot[n] = onGrid ? owned.brickSlot[std::size_t(L.brickId(i, j, k))] : -1;
 			constant[n] = onGrid && brickSign[std::size_t(L.brickId(i, j, k))] < 0 ? -kMaxQuanta : kMaxQuanta;
 		}
+		// Row by row: a row (b, c) reads its first B points from one brick (n) and its last from the brick after it
+		// in x (n + 1).
+		auto copy = [&](int n, std::size_t p) {
+			if (slot[n] < 0)
+			{
+				*out++ = std::int16_t(constant[n]);
+				return;
+			}
+			p += std::size_t(slot[n]) * kOwned;
+			const int q = owned.quanta[p];
+			*out++ = std::int16_t(q);
+			if (owned.touched((long long)p))
+			{
+				const double exact = owned.sign[p] * std::sqrt(double(owned.best2[p]));
+				field.maxError = std::max(field.maxError, std::abs(q * quantum - exact));
+			}
+		};
 		for (int c = 0; c <= B; ++c)
 			for (int b = 0; b <= B; ++b)
-				for (int a = 0; a <= B; ++a)
-				{
-					const int n = (a == B) + 2 * (b == B) + 4 * (c == B);
-					if (slot[n] < 0)
-					{
-						*out++ = std::int16_t(constant[n]);
-						continue;
-					}
-					const std::size_t p = std::size_t(slot[n]) * kOwned + std::size_t(a % B + B * (b % B + B * (c % B)));
-					const int q = owned.quanta[p];
-					*out++ = std::int16_t(q);
-					if (owned.touched((long long)p))
-					{
-						const double exact = owned.sign[p] * std::sqrt(double(owned.best2[p]));
-						field.maxError = std::max(field.maxError, std::abs(q * quantum - exact));
-					}
-				}
+			{
+				const int n = 2 * (b == B) + 4 * (c == B);
+				const std::size_t row = std::size_t(B * (b % B + B * (c % B)));
+				for (int a = 0; a < B; ++a)
+					copy(n, row + std::size_t(a));
+				copy(n + 1, row);
+			}
 	}
 }
 
