@@ -163,6 +163,9 @@ struct PlaneTriangle
 struct MeshTopology
 {
 	std::vector<int> start, faces; ///< faces of vertex v: faces[start[v] .. start[v+1])
+	/// The faces holding face f's edge k (corners k, k+1), in the order of the fan of corner k: onEdge[edgeStart[3 f +
+	/// k] .. edgeStart[3 f + k + 1]). Found once here: the bake needs them for the pseudo-normals and the edge regions.
+	std::vector<int> edgeStart, onEdge;
 	std::vector<Eigen::Vector3d> faceN, vertexN, edgeN;
 
 	explicit MeshTopology(const TriMesh& mesh)
@@ -180,30 +183,39 @@ struct MeshTopology
 			for (int k = 0; k < 3; ++k)
 				faces[std::size_t(fill[std::size_t(mesh.F(f, k))]++)] = f;
 		normals(mesh);
+		edgeFaceLists(mesh);
 		edgeN.assign(std::size_t(nf) * 3, Eigen::Vector3d::Zero());
-		std::vector<int> onEdge;
+		for (std::size_t e = 0; e < std::size_t(nf) * 3; ++e)
+			for (int s = edgeStart[e]; s < edgeStart[e + 1]; ++s)
+				edgeN[e] += faceN[std::size_t(onEdge[std::size_t(s)])];
+	}
+
+	/// The faces holding face f's edge k: [first, end) of onEdge.
+	int edgeBegin(int f, int k) const { return edgeStart[std::size_t(f) * 3 + std::size_t(k)]; }
+	int edgeEnd(int f, int k) const { return edgeStart[std::size_t(f) * 3 + std::size_t(k) + 1]; }
+
+private:
+	/// edgeStart and onEdge: per face edge (a, b), the faces of a's fan that also hold b.
+	void edgeFaceLists(const TriMesh& mesh)
+	{
+		const int nf = mesh.faceCount();
+		edgeStart.assign(std::size_t(nf) * 3 + 1, 0);
+		onEdge.clear();
+		onEdge.reserve(std::size_t(nf) * 6);
 		for (int f = 0; f < nf; ++f)
 			for (int k = 0; k < 3; ++k)
 			{
-				edgeFaces(mesh, mesh.F(f, k), mesh.F(f, (k + 1) % 3), onEdge);
-				for (int g : onEdge)
-					edgeN[std::size_t(f) * 3 + std::size_t(k)] += faceN[std::size_t(g)];
+				const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3);
+				for (int s = start[std::size_t(a)]; s < start[std::size_t(a) + 1]; ++s)
+				{
+					const int g = faces[std::size_t(s)];
+					if (mesh.F(g, 0) == b || mesh.F(g, 1) == b || mesh.F(g, 2) == b)
+						onEdge.push_back(g);
+				}
+				edgeStart[std::size_t(f) * 3 + std::size_t(k) + 1] = int(onEdge.size());
 			}
 	}
 
-	/// The faces holding the edge (a, b), into `out`.
-	void edgeFaces(const TriMesh& mesh, int a, int b, std::vector<int>& out) const
-	{
-		out.clear();
-		for (int s = start[std::size_t(a)]; s < start[std::size_t(a) + 1]; ++s)
-		{
-			const int g = faces[std::size_t(s)];
-			if (mesh.F(g, 0) == b || mesh.F(g, 1) == b || mesh.F(g, 2) == b)
-				out.push_back(g);
-		}
-	}
-
-private:
 	void normals(const TriMesh& mesh)
 	{
 		faceN.assign(std::size_t(mesh.faceCount()), Eigen::Vector3d::Zero());
@@ -392,6 +404,7 @@ struct FeatureRegion
 	int axis = 0;                   ///< the rows of the scan run along this axis
 	std::vector<Eigen::Vector3d> n; ///< unit normals
 	std::vector<double> b;
+	std::vector<Eigen::Vector3d> rays; ///< scratch of vertexConeBox, kept to reuse its storage
 
 	/// Box, and rows along the axis nearest `normal`.
 	void reset(const Eigen::Vector3d& boxLo, const Eigen::Vector3d& boxHi, const Eigen::Vector3d& normal)
@@ -420,17 +433,36 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 	constexpr int kMaxPlanes = 32;  // more (a vertex of valence > 32) are dropped: the region only grows
 	const int ra = R.axis, ua = (R.axis + 1) % 3, va = (R.axis + 2) % 3;
 	const int planes = std::min(int(R.n.size()), kMaxPlanes);
+	// The planes sorted by kind: [0, upper) bound r above, [upper, lower) below, [lower, planes) do not depend on r,
+	// so that a row's interval is a branch-free min and max (both exact, so the order of the planes does not matter).
 	double c[kMaxPlanes], du[kMaxPlanes], dv[kMaxPlanes], inv[kMaxPlanes], atV[kMaxPlanes];
-	int kind[kMaxPlanes]; // +1: bounds r above, -1: below, 0: does not depend on r
+	int upper = 0, lower = 0;
+	for (int kind = 1; kind >= -1; kind -= 2)
+	{
+		for (int k = 0; k < planes; ++k)
+		{
+			const Eigen::Vector3d& n = R.n[std::size_t(k)];
+			const double dr = L.h * n[ra];
+			if (!(kind > 0 ? dr > 1e-15 : dr < -1e-15))
+				continue;
+			c[lower] = n.dot(L.origin) - R.b[std::size_t(k)] - kSlack;
+			du[lower] = L.h * n[ua];
+			dv[lower] = L.h * n[va];
+			inv[lower++] = -1.0 / dr;
+		}
+		if (kind > 0)
+			upper = lower;
+	}
+	const int constant = lower;
 	for (int k = 0; k < planes; ++k)
 	{
 		const Eigen::Vector3d& n = R.n[std::size_t(k)];
 		const double dr = L.h * n[ra];
-		c[k] = n.dot(L.origin) - R.b[std::size_t(k)] - kSlack;
-		du[k] = L.h * n[ua];
-		dv[k] = L.h * n[va];
-		kind[k] = dr > 1e-15 ? 1 : dr < -1e-15 ? -1 : 0;
-		inv[k] = kind[k] != 0 ? -1.0 / dr : 0.0;
+		if (dr > 1e-15 || dr < -1e-15)
+			continue;
+		c[lower] = n.dot(L.origin) - R.b[std::size_t(k)] - kSlack;
+		du[lower] = L.h * n[ua];
+		dv[lower++] = L.h * n[va];
 	}
 	long long lo[3], hi[3], P[3];
 	latticeRange(L, R.lo, R.hi, 0.0, lo, hi);
@@ -440,33 +472,39 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 	else if (lo[sa] > slab.hi || hi[sa] < slab.lo)
 		return;
 	const double step[3] = {L.h * T.u[ra], L.h * T.v[ra], L.h * T.n[ra]};
+	const long long stride = ra == 0 ? 1 : ra == 1 ? B : B * B; // of the owned index, within a brick
 	for (long long V = lo[va]; V <= hi[va]; ++V)
 	{
-		for (int k = 0; k < planes; ++k)
+		for (int k = 0; k < lower; ++k)
 			atV[k] = c[k] + dv[k] * double(V);
 		for (long long U = lo[ua]; U <= hi[ua]; ++U)
 		{
 			double ra0 = double(lo[ra]), ra1 = double(hi[ra]);
-			for (int k = 0; k < planes && ra0 <= ra1; ++k)
-			{
-				const double c0 = atV[k] + du[k] * double(U); // c0 + dr r <= 0
-				if (kind[k] > 0)
-					ra1 = std::min(ra1, c0 * inv[k]);
-				else if (kind[k] < 0)
-					ra0 = std::max(ra0, c0 * inv[k]);
-				else if (c0 > 0.0)
-					ra1 = ra0 - 1.0;
-			}
-			if (ra0 > ra1)
+			bool outside = false; // a plane that does not depend on r excludes the row
+			for (int k = constant; k < lower; ++k)
+				outside = outside || atV[k] + du[k] * double(U) > 0.0;
+			for (int k = 0; k < upper; ++k) // c0 + dr r <= 0 with c0 = atV + du U
+				ra1 = std::min(ra1, (atV[k] + du[k] * double(U)) * inv[k]);
+			for (int k = upper; k < constant; ++k)
+				ra0 = std::max(ra0, (atV[k] + du[k] * double(U)) * inv[k]);
+			if (outside || ra0 > ra1)
 				continue;
 			// The row's points in T's plane frame: from its first point, one lattice step along ra at a time.
 			P[ua] = U, P[va] = V, P[ra] = (long long)std::ceil(ra0);
 			const Eigen::Vector3d d = L.point(P[0], P[1], P[2]) - T.v0;
 			double s = d.dot(T.u), t = d.dot(T.v), w = d.dot(T.n);
 			const long long last = ra == sa ? std::min((long long)std::floor(ra1), slab.hi) : (long long)std::floor(ra1);
-			for (; P[ra] <= last; ++P[ra], s += step[0], t += step[1], w += step[2])
+			// The owned index found through the brick index where the row enters a brick, then a stride along it.
+			long long p = -1;
+			for (const long long first = P[ra]; P[ra] <= last; ++P[ra], s += step[0], t += step[1], w += step[2])
+			{
+				if (P[ra] == first || P[ra] % B == 0)
+					p = owned.index(L, P[0], P[1], P[2]);
+				else if (p >= 0)
+					p += stride;
 				if (ra != sa || P[sa] >= slab.lo)
-					measure(T, s, t, w, owned.index(L, P[0], P[1], P[2]), owned);
+					measure(T, s, t, w, p, owned);
+			}
 		}
 	}
 }
@@ -527,20 +565,30 @@ void edgeRegion(const TriMesh& mesh, const MeshTopology& topo, int a, int b, con
 /// their mean a with the half-angle t of the widest, where |d_i| <= clamp (|a_i| + sin t). False when the cone is
 /// {0} (a saddle: no point but v has v as its nearest point). A wide cone (or one holding a line) gets the ball's box.
 bool vertexConeBox(const Eigen::Vector3d& pv, const std::vector<Eigen::Vector3d>& edges, double clamp,
-				   Eigen::Vector3d& lo, Eigen::Vector3d& hi)
+				   std::vector<Eigen::Vector3d>& rays, Eigen::Vector3d& lo, Eigen::Vector3d& hi)
 {
 	constexpr double kTolerance = 1e-9;
 	Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-	std::vector<Eigen::Vector3d> rays;
+	rays.clear();
 	for (std::size_t i = 0; i < edges.size(); ++i)
 		for (std::size_t j = i + 1; j < edges.size(); ++j)
 		{
 			const Eigen::Vector3d r = edges[i].cross(edges[j]);
 			if (!(r.norm() > 1e-12))
 				continue;
-			for (const Eigen::Vector3d& ray : {Eigen::Vector3d(r.normalized()), Eigen::Vector3d(-r.normalized())})
-				if (std::all_of(edges.begin(), edges.end(), [&](const Eigen::Vector3d& e) { return ray.dot(e) <= kTolerance; }))
-					rays.push_back(ray), sum += ray;
+			// Both directions of the line at once: (-r) . e is exactly -(r . e) (rounding is symmetric in sign).
+			const Eigen::Vector3d ray = r.normalized();
+			bool plus = true, minus = true;
+			for (const Eigen::Vector3d& e : edges)
+			{
+				const double d = ray.dot(e);
+				plus = plus && d <= kTolerance;
+				minus = minus && -d <= kTolerance;
+			}
+			if (plus)
+				rays.push_back(ray), sum += ray;
+			if (minus)
+				rays.push_back(-ray), sum += -ray;
 		}
 	if (rays.empty())
 		return false;
@@ -574,7 +622,7 @@ bool vertexRegion(const TriMesh& mesh, const MeshTopology& topo, const std::vect
 			if (mesh.F(g, k) == v)
 				R.add((mesh.V.row(mesh.F(g, (k + 1) % 3)).transpose() - pv).normalized(), pv);
 	}
-	return vertexConeBox(pv, R.n, clamp, R.lo, R.hi);
+	return vertexConeBox(pv, R.n, clamp, R.rays, R.lo, R.hi);
 }
 
 /// Step 2 for the points of one slab: every lattice point within clamp of the skin gets its exact nearest distance
@@ -600,9 +648,10 @@ void exactDistancesInSlab(const TriMesh& mesh, const MeshTopology& topo, const s
 		for (int k = 0; k < 3; ++k)
 		{
 			const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3);
-			topo.edgeFaces(mesh, a, b, faces);
-			faces.erase(std::remove_if(faces.begin(), faces.end(), [&](int g) { return planeOf[std::size_t(g)] < 0; }),
-						faces.end());
+			faces.clear(); // the non-degenerate faces on the edge
+			for (int s = topo.edgeBegin(f, k); s < topo.edgeEnd(f, k); ++s)
+				if (planeOf[std::size_t(topo.onEdge[std::size_t(s)])] >= 0)
+					faces.push_back(topo.onEdge[std::size_t(s)]);
 			if (faces.front() != f)
 				continue; // each edge once, from its first face
 			edgeRegion(mesh, topo, a, b, faces, clamp, R);
@@ -697,11 +746,23 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints&
 		return q >= 0 && owned.sign[std::size_t(p)] != owned.sign[std::size_t(q)] &&
 			   std::abs(signedDistance(p) - signedDistance(q)) > limit;
 	};
-	// The suspect pairs, found per slab of slots in parallel and queued in slot order.
+	// The suspect pairs, found per slab of slots in parallel and queued in slot order. A point on a brick's upper face
+	// finds its +axis neighbour in the slot of the brick above (-1: not near, or off the grid).
 	const int slots = int(owned.slotBrick.size());
+	std::vector<int> above(std::size_t(slots) * 3, -1);
+	for (int slot = 0; slot < slots; ++slot)
+	{
+		const int brick = owned.slotBrick[std::size_t(slot)];
+		const int id[3] = {brick % L.dims[0], (brick / L.dims[0]) % L.dims[1], brick / (L.dims[0] * L.dims[1])};
+		for (int axis = 0; axis < 3; ++axis)
+		{
+			int next[3] = {id[0], id[1], id[2]};
+			if (++next[axis] < L.dims[axis])
+				above[std::size_t(slot) * 3 + std::size_t(axis)] = owned.brickSlot[std::size_t(L.brickId(next[0], next[1], next[2]))];
+		}
+	}
 	std::vector<std::vector<long long>> pairs(std::size_t(std::max(1, std::min(threads, slots))));
 	parallelParts(slots, threads, [&](int part, int first, int end) {
-		long long P[3];
 		for (long long slot = first; slot < end; ++slot)
 			for (int c = 0; c < B; ++c)
 				for (int b = 0; b < B; ++b)
@@ -713,11 +774,12 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints&
 						const int local[3] = {a, b, c}, stride[3] = {1, B, B * B};
 						for (int axis = 0; axis < 3; ++axis)
 						{
-							long long q = -1; // the +axis neighbour: in the same brick, or found through the lattice
+							long long q = -1; // the +axis neighbour: in the same brick, or at local 0 of the brick above
 							if (local[axis] < B - 1)
-								q = owned.touched(p + stride[axis]) ? p + stride[axis] : -1;
-							else
-								latticeOf(L, owned, p, P), q = exactNeighbour(P, axis, 1);
+								q = p + stride[axis];
+							else if (const int next = above[std::size_t(slot) * 3 + std::size_t(axis)]; next >= 0)
+								q = (long long)next * kOwned + (p % kOwned) - (long long)(B - 1) * stride[axis];
+							q = q >= 0 && owned.touched(q) ? q : -1;
 							if (suspect(p, q))
 								pairs[std::size_t(part)].push_back(p), pairs[std::size_t(part)].push_back(q);
 						}
@@ -784,31 +846,31 @@ void signFarPointsInSlab(const Lattice& L, int firstJ, int endJ, OwnedPoints& ow
 	const long long rowLength = L.ownedExtent(0);
 	std::vector<long long> exactX;
 	std::vector<std::int8_t> exactSign;
-	std::vector<int> nearI;
+	std::vector<int> nearI, nearSlot; // the near bricks of the brick row, and their slots
 	for (int k = 0; k < L.dims[2]; ++k)
 		for (int j = firstJ; j < endJ; ++j)
 		{
-			nearI.clear();
+			nearI.clear(), nearSlot.clear();
 			for (int i = 0; i < L.dims[0]; ++i)
-				if (owned.brickSlot[std::size_t(L.brickId(i, j, k))] >= 0)
-					nearI.push_back(i);
+				if (const int slot = owned.brickSlot[std::size_t(L.brickId(i, j, k))]; slot >= 0)
+					nearI.push_back(i), nearSlot.push_back(slot);
 			for (int c = 0; c < B; ++c)
 				for (int b = 0; b < B; ++b)
 				{
 					exactX.clear(), exactSign.clear();
-					for (int i : nearI)
+					for (std::size_t n = 0; n < nearI.size(); ++n)
+					{
+						const long long row = (long long)nearSlot[n] * kOwned + B * (b + B * c);
 						for (int a = 0; a < B; ++a)
-						{
-							const long long p = (long long)owned.brickSlot[std::size_t(L.brickId(i, j, k))] * kOwned + a + B * (b + B * c);
-							if (owned.touched(p))
-								exactX.push_back((long long)i * B + a), exactSign.push_back(owned.sign[std::size_t(p)]);
-						}
+							if (owned.touched(row + a))
+								exactX.push_back((long long)nearI[n] * B + a), exactSign.push_back(owned.sign[std::size_t(row + a)]);
+					}
 					std::size_t next = 0;
-					for (int i : nearI)
+					for (std::size_t n = 0; n < nearI.size(); ++n)
 						for (int a = 0; a < B; ++a)
 						{
-							const long long p = (long long)owned.brickSlot[std::size_t(L.brickId(i, j, k))] * kOwned + a + B * (b + B * c);
-							const long long X = (long long)i * B + a;
+							const long long p = (long long)nearSlot[n] * kOwned + a + B * (b + B * c);
+							const long long X = (long long)nearI[n] * B + a;
 							while (next < exactX.size() && exactX[next] < X)
 								++next;
 							if (!owned.touched(p))
@@ -892,13 +954,32 @@ struct CellCorners
 				point[n] = base + (n & 1) + B * ((n >> 1) & 1) + B * B * (n >> 2);
 			return;
 		}
-		const long long X = (long long)c.brick[0] * B + c.cell[0], Y = (long long)c.brick[1] * B + c.cell[1],
-						Z = (long long)c.brick[2] * B + c.cell[2];
+		// A cell on the brick's upper faces: a corner at local B is local 0 of the brick above on that axis (the
+		// same values as owned.index and latticeQuanta give, without the lattice divisions). Per axis, the brick and
+		// local coordinate of the cell's lower (0) and upper (1) corners.
+		int brick[3][2], local[3][2];
+		bool onGrid[3][2];
+		for (int k = 0; k < 3; ++k)
+		{
+			const bool carry = c.cell[k] == B - 1;
+			brick[k][0] = c.brick[k], local[k][0] = c.cell[k], onGrid[k][0] = true;
+			brick[k][1] = c.brick[k] + (carry ? 1 : 0), local[k][1] = carry ? 0 : c.cell[k] + 1;
+			onGrid[k][1] = brick[k][1] < L.dims[k];
+		}
 		for (int n = 0; n < 8; ++n)
 		{
-			point[n] = owned.index(L, X + (n & 1), Y + ((n >> 1) & 1), Z + (n >> 2));
-			if (point[n] < 0)
-				constant[n] = latticeQuanta(L, owned, brickSign, X + (n & 1), Y + ((n >> 1) & 1), Z + (n >> 2));
+			const int x = n & 1, y = (n >> 1) & 1, z = n >> 2;
+			point[n] = -1;
+			if (!(onGrid[0][x] && onGrid[1][y] && onGrid[2][z]))
+			{
+				constant[n] = kMaxQuanta;
+				continue;
+			}
+			const int id = L.brickId(brick[0][x], brick[1][y], brick[2][z]);
+			if (const int s = owned.brickSlot[std::size_t(id)]; s >= 0)
+				point[n] = (long long)s * kOwned + local[0][x] + B * (local[1][y] + B * local[2][z]);
+			else
+				constant[n] = brickSign[std::size_t(id)] < 0 ? -kMaxQuanta : kMaxQuanta;
 		}
 	}
 
@@ -936,41 +1017,54 @@ bool lowerSkinReading(const Lattice& L, const CellLocation& c, OwnedPoints& owne
 	return true;
 }
 
+/// The cells the skin samples read, located once (the lowering and the final reading both need them), in sample
+/// order, and the order of the lowering: by brick layer in y, in sample order within a layer (a counting sort). A
+/// sample off the grid (which cannot happen: the grid holds the mesh's box) is left out, as sample() would read +clamp
+/// there.
+struct SkinCells
+{
+	std::vector<CellLocation> cell;
+	std::vector<int> order;      ///< cells by layer: layer j's are order[layerStart[j] .. layerStart[j + 1])
+	std::vector<int> layerStart;
+
+	SkinCells(const Lattice& L, const std::vector<Eigen::Vector3d>& samples)
+	{
+		const int layers = L.dims[kSlabAxis];
+		cell.reserve(samples.size());
+		layerStart.assign(std::size_t(layers) + 1, 0);
+		for (const Eigen::Vector3d& p : samples)
+		{
+			CellLocation c;
+			if (locateCell(L.origin, L.h, L.dims, p, c))
+				cell.push_back(c), ++layerStart[std::size_t(c.brick[kSlabAxis]) + 1];
+		}
+		for (int j = 0; j < layers; ++j)
+			layerStart[std::size_t(j) + 1] += layerStart[std::size_t(j)];
+		order.resize(cell.size());
+		std::vector<int> fill(layerStart.begin(), layerStart.end() - 1);
+		for (std::size_t i = 0; i < cell.size(); ++i)
+			order[std::size_t(fill[std::size_t(cell[i].brick[kSlabAxis])]++)] = int(i);
+	}
+};
+
 /// Step 4: every skin sample that reads > 0 is lowered to 0 (lowerSkinReading). Lowering never raises a reading, so
 /// one pass leaves no sample > 0, in any order. The order is fixed by the samples' brick layers in y: a sample reads
 /// and lowers lattice layers [j B, (j + 1) B] of its layer j, so the even layers are done in parallel (each in sample
 /// order), then the odd ones; the result is the same for any thread count. Marks the brick each sample is read from
 /// in `holdsSkin`; returns the number of samples that read > 0.
-int lowerSkinReadings(const Lattice& L, const std::vector<Eigen::Vector3d>& samples, OwnedPoints& owned,
+int lowerSkinReadings(const Lattice& L, const SkinCells& skin, OwnedPoints& owned,
 					  const std::vector<std::int8_t>& brickSign, int threads, std::vector<char>& holdsSkin)
 {
-	// The samples of each brick layer, in sample order (a counting sort; -1: off the grid, which cannot happen as
-	// the grid holds the mesh's box).
 	const int layers = L.dims[kSlabAxis];
-	std::vector<int> layerOf(samples.size(), -1), start(std::size_t(layers) + 1, 0);
-	for (std::size_t s = 0; s < samples.size(); ++s)
-	{
-		CellLocation c;
-		if (locateCell(L.origin, L.h, L.dims, samples[s], c))
-			layerOf[s] = c.brick[kSlabAxis], ++start[std::size_t(c.brick[kSlabAxis]) + 1];
-	}
-	for (int j = 0; j < layers; ++j)
-		start[std::size_t(j) + 1] += start[std::size_t(j)];
-	std::vector<int> order(std::size_t(start.back()));
-	std::vector<int> fill(start.begin(), start.end() - 1);
-	for (std::size_t s = 0; s < samples.size(); ++s)
-		if (layerOf[s] >= 0)
-			order[std::size_t(fill[std::size_t(layerOf[s])]++)] = int(s);
 	std::vector<int> lowered(std::size_t(layers), 0);
 	for (int parity = 0; parity < 2; ++parity)
 	{
 		const int count = (layers - parity + 1) / 2; // layers parity, parity + 2, ...
 		parallelRanges(count, threads, [&](int first, int end) {
 			for (int j = parity + 2 * first; j < parity + 2 * end; j += 2)
-				for (int r = start[std::size_t(j)]; r < start[std::size_t(j) + 1]; ++r)
+				for (int r = skin.layerStart[std::size_t(j)]; r < skin.layerStart[std::size_t(j) + 1]; ++r)
 				{
-					CellLocation c;
-					locateCell(L.origin, L.h, L.dims, samples[std::size_t(order[std::size_t(r)])], c);
+					const CellLocation& c = skin.cell[std::size_t(skin.order[std::size_t(r)])];
 					holdsSkin[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))] = 1;
 					lowered[std::size_t(j)] += lowerSkinReading(L, c, owned, brickSign) ? 1 : 0;
 				}
@@ -985,20 +1079,17 @@ int lowerSkinReadings(const Lattice& L, const std::vector<Eigen::Vector3d>& samp
 /// The largest |reading| at the skin samples (metres; the true distance there is 0), read as sample() reads the
 /// stored field: the bricks holding skin samples are stored, with the owned points' values. On `threads` threads (a
 /// maximum does not depend on the order).
-double largestSkinReading(const Lattice& L, const std::vector<Eigen::Vector3d>& samples, const OwnedPoints& owned,
+double largestSkinReading(const Lattice& L, const SkinCells& skin, const OwnedPoints& owned,
 						  const std::vector<std::int8_t>& brickSign, double quantum, double clamp, int threads)
 {
-	const int n = int(samples.size());
+	const int n = int(skin.cell.size());
 	std::vector<double> worst(std::size_t(std::max(1, std::min(threads, n))), 0.0);
 	parallelParts(n, threads, [&](int part, int first, int end) {
 		for (int i = first; i < end; ++i)
-		{
-			CellLocation c;
-			if (locateCell(L.origin, L.h, L.dims, samples[std::size_t(i)], c))
-				worst[std::size_t(part)] =
-					std::max(worst[std::size_t(part)],
-							 std::abs(std::clamp(CellCorners(L, owned, brickSign, c).reading(owned) * quantum, -clamp, clamp)));
-		}
+			worst[std::size_t(part)] =
+				std::max(worst[std::size_t(part)],
+						 std::abs(std::clamp(CellCorners(L, owned, brickSign, skin.cell[std::size_t(i)]).reading(owned) * quantum,
+											 -clamp, clamp)));
 	});
 	return *std::max_element(worst.begin(), worst.end());
 }
@@ -1058,6 +1149,8 @@ void gatherBricks(const Lattice& L, const OwnedPoints& owned, const std::vector<
 {
 	field.brickIndex.assign(std::size_t(L.brickCount()), kFarOutside);
 	const double quantum = field.quantum();
+	field.samples.resize(std::size_t(std::count(stored.begin(), stored.end(), char(1))) * kSkinBrickSamples);
+	std::int16_t* out = field.samples.data();
 	int blocks = 0;
 	for (int brick = 0; brick < int(L.brickCount()); ++brick)
 	{
@@ -1079,25 +1172,32 @@ void gatherBricks(const Lattice& L, const OwnedPoints& owned, const std::vector<
 			slot[n] = onGrid ? owned.brickSlot[std::size_t(L.brickId(i, j, k))] : -1;
 			constant[n] = onGrid && brickSign[std::size_t(L.brickId(i, j, k))] < 0 ? -kMaxQuanta : kMaxQuanta;
 		}
+		// Row by row: a row (b, c) reads its first B points from one brick (n) and its last from the brick after it
+		// in x (n + 1).
+		auto copy = [&](int n, std::size_t p) {
+			if (slot[n] < 0)
+			{
+				*out++ = std::int16_t(constant[n]);
+				return;
+			}
+			p += std::size_t(slot[n]) * kOwned;
+			const int q = owned.quanta[p];
+			*out++ = std::int16_t(q);
+			if (owned.touched((long long)p))
+			{
+				const double exact = owned.sign[p] * std::sqrt(double(owned.best2[p]));
+				field.maxError = std::max(field.maxError, std::abs(q * quantum - exact));
+			}
+		};
 		for (int c = 0; c <= B; ++c)
 			for (int b = 0; b <= B; ++b)
-				for (int a = 0; a <= B; ++a)
-				{
-					const int n = (a == B) + 2 * (b == B) + 4 * (c == B);
-					if (slot[n] < 0)
-					{
-						field.samples.push_back(std::int16_t(constant[n]));
-						continue;
-					}
-					const std::size_t p = std::size_t(slot[n]) * kOwned + std::size_t(a % B + B * (b % B + B * (c % B)));
-					const int q = owned.quanta[p];
-					field.samples.push_back(std::int16_t(q));
-					if (owned.touched((long long)p))
-					{
-						const double exact = owned.sign[p] * std::sqrt(double(owned.best2[p]));
-						field.maxError = std::max(field.maxError, std::abs(q * quantum - exact));
-					}
-				}
+			{
+				const int n = 2 * (b == B) + 4 * (c == B);
+				const std::size_t row = std::size_t(B * (b % B + B * (c % B)));
+				for (int a = 0; a < B; ++a)
+					copy(n, row + std::size_t(a));
+				copy(n + 1, row);
+			}
 	}
 }
 
@@ -1117,8 +1217,23 @@ void checkMesh(const TriMesh& mesh)
 std::vector<Eigen::Vector3d> skinSamplePoints(const TriMesh& mesh, double voxel)
 {
 	auto divisions = [voxel](double length) { return int(std::clamp(std::ceil(length / voxel), 3.0, 64.0)); };
+	// Counted first: the points are ~20 per face at a 5 mm voxel, and growing the vector would copy them.
+	std::size_t count = std::size_t(mesh.vertexCount());
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		double longest = 0.0;
+		for (int k = 0; k < 3; ++k)
+		{
+			const double length = (mesh.V.row(mesh.F(f, (k + 1) % 3)) - mesh.V.row(mesh.F(f, k))).norm();
+			longest = std::max(longest, length);
+			if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3))
+				count += std::size_t(divisions(length) - 1);
+		}
+		const std::size_t n = std::size_t(divisions(longest));
+		count += (n - 1) * (n - 2) / 2; // i, j >= 1, i + j <= n - 1
+	}
 	std::vector<Eigen::Vector3d> out;
-	out.reserve(std::size_t(mesh.vertexCount() + 4 * mesh.faceCount()));
+	out.reserve(count);
 	for (int v = 0; v < mesh.vertexCount(); ++v)
 		out.push_back(mesh.V.row(v).transpose());
 	for (int f = 0; f < mesh.faceCount(); ++f)
@@ -1186,7 +1301,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	field.nx = L.dims[0], field.ny = L.dims[1], field.nz = L.dims[2];
 	quantise(owned, field.quantum(), threads);
 
-	const std::vector<Eigen::Vector3d> skin = skinSamplePoints(mesh, L.h);
+	const SkinCells skin(L, skinSamplePoints(mesh, L.h));
 	std::vector<char> stored(std::size_t(L.brickCount()), 0);
 	field.loweredSamples = lowerSkinReadings(L, skin, owned, brickSign, threads, stored);
 	const double halfDiagonal = 0.5 * std::sqrt(3.0) * B * L.h;
