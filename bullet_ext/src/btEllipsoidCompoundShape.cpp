@@ -547,11 +547,10 @@ void btEllipsoidWorldCache::chooseGridMargins(bool animated, btScalar cell)
 		btScalar margin = smallest;
 		if (haveRates)
 		{
+			// (A NaN drift gets the smallest margin: btMax keeps its second argument, and gridCovers rebuilds.)
 			const btScalar perUpdate = driftSinceBuild(i) / btScalar(m_updatesSinceBuild + 1);
 			margin = btMin(btMax(perUpdate * btScalar(kAnimatedMarginUpdates), smallest),
 						   btScalar(kAnimatedMarginMax) * cell);
-			if (!(margin >= smallest)) // NaN drift (the poses were checked finite, but keep the lists sound)
-				margin = btScalar(kAnimatedMarginMax) * cell;
 		}
 		m_gridMargins[i] = margin;
 		m_gridMargin = btMax(m_gridMargin, margin);
