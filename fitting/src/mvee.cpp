@@ -131,29 +131,67 @@ private:
 		return true;
 	}
 
+	/// The largest M over the active set (Frank-Wolfe / increase step) and the smallest among weighted points (away /
+	/// drop step), each at its first index.
+	struct Extremes
+	{
+		size_t j = 0, k = 0;
+		double mMax = -1.0, mMin = std::numeric_limits<double>::infinity();
+
+		void see(size_t a, double m, double u)
+		{
+			if (m > mMax)
+			{
+				mMax = m;
+				j = a;
+			}
+			if (u > 0.0 && m < mMin)
+			{
+				mMin = m;
+				k = a;
+			}
+		}
+	};
+
+	Extremes extremes() const
+	{
+		Extremes e;
+		for (size_t a = 0; a < M_.size(); ++a)
+			e.see(a, M_[a], u_[a]);
+		return e;
+	}
+
+	/// The rank-one step on `target` (Sherman-Morrison: X' = (1 - tau)(X + beta q q^T), beta = tau / (1 - tau)):
+	/// X^-1, diag(M) and the weights, in one pass that also finds the extremes of the new M (the next step's search).
+	Extremes step(size_t target, double tau, bool drop)
+	{
+		const double beta = tau / (1.0 - tau);
+		const double coef = beta / (1.0 + beta * M_[target]);
+		const double inv = 1.0 / (1.0 - tau);
+		const VecL w = Xinv_ * q_[target];
+		Xinv_ = (Xinv_ - coef * w * w.transpose()) * inv;
+		Extremes e;
+		for (size_t a = 0; a < q_.size(); ++a)
+		{
+			const double g = w.dot(q_[a]);
+			M_[a] = (M_[a] - coef * g * g) * inv;
+			u_[a] *= 1.0 - tau;
+			if (a == target)
+				u_[a] = drop ? 0.0 : u_[a] + tau;
+			e.see(a, M_[a], u_[a]);
+		}
+		return e;
+	}
+
 	/// Khachiyan / Todd-Yildirim iterations on the active set until max M <= (1 + tol) l or the cap.
 	FitStatus iterate()
 	{
 		const double l = double(L);
 		int sinceRebuild = 0;
+		Extremes e = extremes();
 		while (true)
 		{
-			// Largest M (Frank-Wolfe / increase step) and smallest M among weighted points (away / drop step).
-			size_t j = 0, k = 0;
-			double mMax = -1.0, mMin = std::numeric_limits<double>::infinity();
-			for (size_t a = 0; a < M_.size(); ++a)
-			{
-				if (M_[a] > mMax)
-				{
-					mMax = M_[a];
-					j = a;
-				}
-				if (u_[a] > 0.0 && M_[a] < mMin)
-				{
-					mMin = M_[a];
-					k = a;
-				}
-			}
+			const double mMax = e.mMax, mMin = e.mMin;
 			if (!std::isfinite(mMax) || !std::isfinite(mMin))
 				return FitStatus::NumericalIssue;
 			const double epsPlus = mMax / l - 1.0, epsMinus = 1.0 - mMin / l;
@@ -163,12 +201,12 @@ private:
 				return FitStatus::NotConverged;
 
 			// Choose the step (Todd-Yildirim): away from k when its deficit exceeds j's excess.
-			size_t target = j;
+			size_t target = e.j;
 			double tau = (mMax - l) / (l * (mMax - 1.0));
 			bool drop = false;
-			if (epsMinus > epsPlus && u_[k] < 1.0)
+			if (epsMinus > epsPlus && u_[e.k] < 1.0)
 			{
-				const double lower = -u_[k] / (1.0 - u_[k]);
+				const double lower = -u_[e.k] / (1.0 - u_[e.k]);
 				double tauAway = mMin - 1.0 > 0.0 ? (mMin - l) / (l * (mMin - 1.0)) : lower;
 				bool dropAway = false;
 				if (tauAway <= lower)
@@ -179,31 +217,20 @@ private:
 				// Removing k's weight must leave X positive definite: 1 + beta M_k > 0 with beta = tau/(1 - tau).
 				if (1.0 + tauAway / (1.0 - tauAway) * mMin > 1e-9)
 				{
-					target = k;
+					target = e.k;
 					tau = tauAway;
 					drop = dropAway;
 				}
 			}
 
-			// Sherman-Morrison: X' = (1 - tau)(X + beta q q^T), beta = tau / (1 - tau).
-			const double beta = tau / (1.0 - tau);
-			const double coef = beta / (1.0 + beta * M_[target]);
-			const double inv = 1.0 / (1.0 - tau);
-			const VecL w = Xinv_ * q_[target];
-			Xinv_ = (Xinv_ - coef * w * w.transpose()) * inv;
-			for (size_t a = 0; a < q_.size(); ++a)
-			{
-				const double g = w.dot(q_[a]);
-				M_[a] = (M_[a] - coef * g * g) * inv;
-				u_[a] *= 1.0 - tau;
-			}
-			u_[target] = drop ? 0.0 : u_[target] + tau;
+			e = step(target, tau, drop);
 			++iterations_;
 			if (++sinceRebuild == kRebuildInterval)
 			{
 				sinceRebuild = 0;
 				if (!rebuild())
 					return FitStatus::NumericalIssue;
+				e = extremes();
 			}
 		}
 	}

@@ -294,13 +294,31 @@ bool crossesClusters(const TriMesh& mesh, const std::vector<int>& owner, int f, 
 
 TriangleCover::TriangleCover(const TriMesh& mesh, const std::vector<int>& owner, double spacing)
 {
+	// The cut level of every triangle that crosses clusters (-1 for the others), so that the storage is sized once.
+	std::vector<int> levels(std::size_t(mesh.F.rows()), -1);
+	std::size_t pointTotal = 0, pieceTotal = 0, triangleTotal = 0;
 	for (int f = 0; f < mesh.F.rows(); ++f)
 	{
 		std::array<int, 3> c{};
 		if (!crossesClusters(mesh, owner, f, c))
 			continue;
+		const int level = coverCutLevel(mesh.V.row(mesh.F(f, 0)), mesh.V.row(mesh.F(f, 1)), mesh.V.row(mesh.F(f, 2)), spacing);
+		levels[std::size_t(f)] = level;
+		pointTotal += std::size_t((level + 1) * (level + 2) / 2);
+		pieceTotal += std::size_t(level * level);
+		++triangleTotal;
+	}
+	points_.reserve(pointTotal);
+	pieces_.reserve(pieceTotal);
+	triangles_.reserve(triangleTotal);
+	for (int f = 0; f < mesh.F.rows(); ++f)
+	{
+		const int level = levels[std::size_t(f)];
+		if (level < 0)
+			continue;
+		std::array<int, 3> c{};
+		crossesClusters(mesh, owner, f, c);
 		const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), d = mesh.V.row(mesh.F(f, 2));
-		const int level = coverCutLevel(a, b, d, spacing);
 		Triangle tri;
 		tri.clusters = c;
 		tri.firstPoint = int(points_.size());
@@ -337,18 +355,34 @@ int TriangleCover::check(const std::vector<Ellipsoid>& ellipsoids, const std::ve
 	const Checker checker(*this, ellipsoids);
 	parallelRanges(int(triangles_.size()), std::max(1, threads),
 				   [&](int begin, int end) { checker.run(begin, end, recheck, verdicts_); });
+	return collectHandouts(handouts, targeted);
+}
+
+int TriangleCover::collectHandouts(std::vector<Handout>& handouts, std::vector<char>& targeted)
+{
+	// A grid point is a corner of up to six pieces of its triangle: it is handed to each cluster once (an MVEE does
+	// not depend on how often a point is repeated, only its cost does). Every target is one of the triangle's corner
+	// clusters, so handedTo_ keeps, per grid point, one bit per corner slot.
+	handedTo_.assign(points_.size(), 0);
 	int uncovered = 0;
-	for (std::size_t p = 0; p < pieces_.size(); ++p)
-	{
-		const Verdict& v = verdicts_[p];
-		if (v.coveredBy >= 0)
-			continue;
-		++uncovered;
-		targeted[std::size_t(v.target)] = 1;
-		for (int k = 0; k < 3; ++k)
-			if (v.outside & (1 << k))
-				handouts.push_back({v.target, points_[std::size_t(pieces_[p][std::size_t(k)])]});
-	}
+	for (const Triangle& tri : triangles_)
+		for (int p = tri.firstPiece; p < tri.pieceEnd; ++p)
+		{
+			const Verdict& v = verdicts_[std::size_t(p)];
+			if (v.coveredBy >= 0)
+				continue;
+			++uncovered;
+			targeted[std::size_t(v.target)] = 1;
+			const int slot = v.target == tri.clusters[0] ? 0 : (v.target == tri.clusters[1] ? 1 : 2);
+			for (int k = 0; k < 3; ++k)
+			{
+				const int q = pieces_[std::size_t(p)][std::size_t(k)];
+				if (!(v.outside & (1 << k)) || (handedTo_[std::size_t(q)] & (1 << slot)))
+					continue;
+				handedTo_[std::size_t(q)] = char(handedTo_[std::size_t(q)] | (1 << slot));
+				handouts.push_back({v.target, points_[std::size_t(q)]});
+			}
+		}
 	return uncovered;
 }
 

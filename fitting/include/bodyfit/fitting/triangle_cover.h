@@ -49,9 +49,9 @@ public:
 
 	/// Checks the pieces against `ellipsoids` (indexed by cluster id). `changed`: per cluster, whether its ellipsoid
 	/// changed since the previous check (ignored at the first check, which checks every piece). Appends to `handouts`
-	/// (in piece order) the corners of every uncovered piece that lie outside the cluster it goes to, and sets
-	/// `targeted` (resized to one flag per cluster) for every cluster some uncovered piece goes to. Returns the
-	/// number of uncovered pieces. `threads` >= 1.
+	/// (in piece order) the corners of every uncovered piece that lie outside the cluster it goes to, each grid point
+	/// once per cluster, and sets `targeted` (resized to one flag per cluster) for every cluster some uncovered piece
+	/// goes to. Returns the number of uncovered pieces. `threads` >= 1.
 	int check(const std::vector<Ellipsoid>& ellipsoids, const std::vector<char>& changed,
 			  std::vector<Handout>& handouts, std::vector<char>& targeted, int threads = 1);
 
@@ -75,10 +75,15 @@ private:
 	};
 	class Checker;
 
+	/// After a check: appends the outside corners of the uncovered pieces to `handouts` (each grid point once per
+	/// cluster it goes to), flags their target clusters in `targeted`, and returns the number of uncovered pieces.
+	int collectHandouts(std::vector<Handout>& handouts, std::vector<char>& targeted);
+
 	std::vector<Eigen::Vector3d> points_;   ///< grid points, triangle by triangle
 	std::vector<std::array<int, 3>> pieces_; ///< corners of each piece (indices into points_)
 	std::vector<Triangle> triangles_;
 	std::vector<Verdict> verdicts_;
+	std::vector<char> handedTo_; ///< per grid point: bit s set once it was handed to corner slot s's cluster
 	bool checked_ = false;
 };
 
