@@ -933,6 +933,27 @@ void quantise(OwnedPoints& owned, double quantum, int threads)
 	});
 }
 
+/// The trilinear weights of a cell's 8 corners (corner n at +(n & 1, n >> 1 & 1, n >> 2)), formed as trilinear() forms
+/// them: (x y) z.
+void cornerWeights(const CellLocation& c, double weight[8])
+{
+	const double x[2] = {1.0 - c.frac[0], c.frac[0]}, y[2] = {1.0 - c.frac[1], c.frac[1]};
+	const double z[2] = {1.0 - c.frac[2], c.frac[2]};
+	const double xy[4] = {x[0] * y[0], x[1] * y[0], x[0] * y[1], x[1] * y[1]};
+	for (int n = 0; n < 8; ++n)
+		weight[n] = xy[n & 3] * z[n >> 2];
+}
+
+/// The owned index of corner 0 of a cell whose 8 corners are all owned points of its own near brick (the cell is not
+/// on the brick's upper faces), else -1: the common case, which reads the quanta without CellCorners.
+long long interiorCellBase(const Lattice& L, const OwnedPoints& owned, const CellLocation& c)
+{
+	if (c.cell[0] >= B - 1 || c.cell[1] >= B - 1 || c.cell[2] >= B - 1)
+		return -1;
+	const int slot = owned.brickSlot[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))];
+	return slot < 0 ? -1 : (long long)slot * kOwned + c.cell[0] + B * (c.cell[1] + B * c.cell[2]);
+}
+
 /// The owned points at the 8 corners of a cell (corner n at +(n & 1, n >> 1 & 1, n >> 2) lattice steps; -1 for a
 /// corner in a brick that is not near, whose quanta are then in `constant`), and the trilinear reading in quanta.
 struct CellCorners
@@ -943,13 +964,9 @@ struct CellCorners
 
 	CellCorners(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign, const CellLocation& c)
 	{
-		for (int n = 0; n < 8; ++n)
-			weight[n] = ((n & 1) ? c.frac[0] : 1.0 - c.frac[0]) * ((n & 2) ? c.frac[1] : 1.0 - c.frac[1]) *
-						((n & 4) ? c.frac[2] : 1.0 - c.frac[2]);
-		const int slot = owned.brickSlot[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))];
-		if (slot >= 0 && c.cell[0] < B - 1 && c.cell[1] < B - 1 && c.cell[2] < B - 1)
+		cornerWeights(c, weight);
+		if (const long long base = interiorCellBase(L, owned, c); base >= 0)
 		{
-			const long long base = (long long)slot * kOwned + c.cell[0] + B * (c.cell[1] + B * c.cell[2]);
 			for (int n = 0; n < 8; ++n) // all 8 corners in the cell's own brick
 				point[n] = base + (n & 1) + B * ((n >> 1) & 1) + B * B * (n >> 2);
 			return;
@@ -994,11 +1011,36 @@ struct CellCorners
 	}
 };
 
+/// The reading in quanta of an interior cell (interiorCellBase): the same sum, in the same order, as
+/// CellCorners::reading. The corners of zero weight are added too: w q is then +-0, which leaves the sum (never -0,
+/// as it starts at +0) unchanged.
+double interiorReading(const OwnedPoints& owned, long long base, const CellLocation& c)
+{
+	double weight[8];
+	cornerWeights(c, weight);
+	const std::int16_t* q = owned.quanta.data() + base;
+	constexpr int offset[8] = {0, 1, B, B + 1, B * B, B * B + 1, B * B + B, B * B + B + 1};
+	double sum = 0.0;
+	for (int n = 0; n < 8; ++n)
+		sum += weight[n] * double(q[offset[n]]);
+	return sum;
+}
+
+/// The reading in quanta of a skin sample's cell: interiorReading where it applies, else through CellCorners.
+double cellReading(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign,
+				   const CellLocation& c)
+{
+	const long long base = interiorCellBase(L, owned, c);
+	return base >= 0 ? interiorReading(owned, base, c) : CellCorners(L, owned, brickSign, c).reading(owned);
+}
+
 /// Step 4 for one skin sample: when it reads r > 0 the 8 corners of its cell are lowered by the least change that
 /// brings it to 0 (corner i by w_i r / sum w^2, w the trilinear weights, rounded up to whole quanta). True when it
 /// read > 0.
 bool lowerSkinReading(const Lattice& L, const CellLocation& c, OwnedPoints& owned, const std::vector<std::int8_t>& brickSign)
 {
+	if (cellReading(L, owned, brickSign, c) <= 0.0)
+		return false; // most samples: read once, cheaply
 	const CellCorners corners(L, owned, brickSign, c);
 	const double reading = corners.reading(owned);
 	if (reading <= 0.0)
@@ -1088,7 +1130,7 @@ double largestSkinReading(const Lattice& L, const SkinCells& skin, const OwnedPo
 		for (int i = first; i < end; ++i)
 			worst[std::size_t(part)] =
 				std::max(worst[std::size_t(part)],
-						 std::abs(std::clamp(CellCorners(L, owned, brickSign, skin.cell[std::size_t(i)]).reading(owned) * quantum,
+						 std::abs(std::clamp(cellReading(L, owned, brickSign, skin.cell[std::size_t(i)]) * quantum,
 											 -clamp, clamp)));
 	});
 	return *std::max_element(worst.begin(), worst.end());
