@@ -954,6 +954,54 @@ long long interiorCellBase(const Lattice& L, const OwnedPoints& owned, const Cel
 	return slot < 0 ? -1 : (long long)slot * kOwned + c.cell[0] + B * (c.cell[1] + B * c.cell[2]);
 }
 
+/// Per near brick, what its cells' corners read from itself and the 7 bricks above it (m = 1 x + 2 y + 4 z for the
+/// brick at +(x, y, z)): a near brick's slot, or kFarOutsideCode / kFarInsideCode for a brick that is not near (its
+/// sign at full clamp) or off the grid (outside). Found once for the skin samples' cells.
+struct BrickNeighbours
+{
+	static constexpr int kFarOutsideCode = -1, kFarInsideCode = -2;
+	const Lattice& L;
+	const OwnedPoints& owned;
+	const std::vector<std::int8_t>& brickSign;
+	std::vector<int> code; ///< slot s's: code[8 s .. 8 s + 8)
+
+	BrickNeighbours(const Lattice& lattice, const OwnedPoints& points, const std::vector<std::int8_t>& sign)
+		: L(lattice), owned(points), brickSign(sign)
+	{
+		code.resize(owned.slotBrick.size() * 8);
+		for (std::size_t slot = 0; slot < owned.slotBrick.size(); ++slot)
+			codes(owned.slotBrick[slot], &code[slot * 8]);
+	}
+
+	/// The 8 codes of `brick`: from the table for a near brick, else found into `scratch`.
+	const int* of(int brick, int scratch[8]) const
+	{
+		const int slot = owned.brickSlot[std::size_t(brick)];
+		if (slot >= 0)
+			return code.data() + std::size_t(slot) * 8;
+		codes(brick, scratch); // not met by a skin sample, whose brick is within clamp of a triangle (near)
+		return scratch;
+	}
+
+private:
+	void codes(int brick, int out[8]) const
+	{
+		const int i = brick % L.dims[0], j = (brick / L.dims[0]) % L.dims[1], k = brick / (L.dims[0] * L.dims[1]);
+		for (int m = 0; m < 8; ++m)
+		{
+			const int a = i + (m & 1), b = j + ((m >> 1) & 1), c = k + (m >> 2);
+			if (a >= L.dims[0] || b >= L.dims[1] || c >= L.dims[2])
+			{
+				out[m] = kFarOutsideCode;
+				continue;
+			}
+			const int id = L.brickId(a, b, c);
+			const int slot = owned.brickSlot[std::size_t(id)];
+			out[m] = slot >= 0 ? slot : brickSign[std::size_t(id)] < 0 ? kFarInsideCode : kFarOutsideCode;
+		}
+	}
+};
+
 /// The owned points at the 8 corners of a cell (corner n at +(n & 1, n >> 1 & 1, n >> 2) lattice steps; -1 for a
 /// corner in a brick that is not near, whose quanta are then in `constant`), and the trilinear reading in quanta.
 struct CellCorners
@@ -962,41 +1010,27 @@ struct CellCorners
 	int constant[8];
 	double weight[8];
 
-	CellCorners(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign, const CellLocation& c)
+	CellCorners(const Lattice& L, const BrickNeighbours& neighbours, const CellLocation& c)
 	{
 		cornerWeights(c, weight);
-		if (const long long base = interiorCellBase(L, owned, c); base >= 0)
-		{
-			for (int n = 0; n < 8; ++n) // all 8 corners in the cell's own brick
-				point[n] = base + (n & 1) + B * ((n >> 1) & 1) + B * B * (n >> 2);
-			return;
-		}
-		// A cell on the brick's upper faces: a corner at local B is local 0 of the brick above on that axis (the
-		// same values as owned.index and latticeQuanta give, without the lattice divisions). Per axis, the brick and
-		// local coordinate of the cell's lower (0) and upper (1) corners.
-		int brick[3][2], local[3][2];
-		bool onGrid[3][2];
+		// A corner at local B is local 0 of the brick above on that axis (the same values as owned.index and
+		// latticeQuanta give, without the lattice divisions). Per axis, whether the cell's upper corner carries into
+		// the brick above, and the local coordinates of its lower (0) and upper (1) corners.
+		int scratch[8];
+		const int* code = neighbours.of(L.brickId(c.brick[0], c.brick[1], c.brick[2]), scratch);
+		int carry[3], local[3][2];
 		for (int k = 0; k < 3; ++k)
 		{
-			const bool carry = c.cell[k] == B - 1;
-			brick[k][0] = c.brick[k], local[k][0] = c.cell[k], onGrid[k][0] = true;
-			brick[k][1] = c.brick[k] + (carry ? 1 : 0), local[k][1] = carry ? 0 : c.cell[k] + 1;
-			onGrid[k][1] = brick[k][1] < L.dims[k];
+			carry[k] = c.cell[k] == B - 1 ? 1 : 0;
+			local[k][0] = c.cell[k];
+			local[k][1] = carry[k] ? 0 : c.cell[k] + 1;
 		}
 		for (int n = 0; n < 8; ++n)
 		{
 			const int x = n & 1, y = (n >> 1) & 1, z = n >> 2;
-			point[n] = -1;
-			if (!(onGrid[0][x] && onGrid[1][y] && onGrid[2][z]))
-			{
-				constant[n] = kMaxQuanta;
-				continue;
-			}
-			const int id = L.brickId(brick[0][x], brick[1][y], brick[2][z]);
-			if (const int s = owned.brickSlot[std::size_t(id)]; s >= 0)
-				point[n] = (long long)s * kOwned + local[0][x] + B * (local[1][y] + B * local[2][z]);
-			else
-				constant[n] = brickSign[std::size_t(id)] < 0 ? -kMaxQuanta : kMaxQuanta;
+			const int s = code[(x & carry[0]) | (y & carry[1]) << 1 | (z & carry[2]) << 2];
+			point[n] = s >= 0 ? (long long)s * kOwned + local[0][x] + B * (local[1][y] + B * local[2][z]) : -1;
+			constant[n] = s == BrickNeighbours::kFarInsideCode ? -kMaxQuanta : kMaxQuanta;
 		}
 	}
 
@@ -1027,21 +1061,20 @@ double interiorReading(const OwnedPoints& owned, long long base, const CellLocat
 }
 
 /// The reading in quanta of a skin sample's cell: interiorReading where it applies, else through CellCorners.
-double cellReading(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign,
-				   const CellLocation& c)
+double cellReading(const Lattice& L, const OwnedPoints& owned, const BrickNeighbours& neighbours, const CellLocation& c)
 {
 	const long long base = interiorCellBase(L, owned, c);
-	return base >= 0 ? interiorReading(owned, base, c) : CellCorners(L, owned, brickSign, c).reading(owned);
+	return base >= 0 ? interiorReading(owned, base, c) : CellCorners(L, neighbours, c).reading(owned);
 }
 
 /// Step 4 for one skin sample: when it reads r > 0 the 8 corners of its cell are lowered by the least change that
 /// brings it to 0 (corner i by w_i r / sum w^2, w the trilinear weights, rounded up to whole quanta). True when it
 /// read > 0.
-bool lowerSkinReading(const Lattice& L, const CellLocation& c, OwnedPoints& owned, const std::vector<std::int8_t>& brickSign)
+bool lowerSkinReading(const Lattice& L, const CellLocation& c, OwnedPoints& owned, const BrickNeighbours& neighbours)
 {
-	if (cellReading(L, owned, brickSign, c) <= 0.0)
+	if (cellReading(L, owned, neighbours, c) <= 0.0)
 		return false; // most samples: read once, cheaply
-	const CellCorners corners(L, owned, brickSign, c);
+	const CellCorners corners(L, neighbours, c);
 	const double reading = corners.reading(owned);
 	if (reading <= 0.0)
 		return false;
@@ -1094,8 +1127,8 @@ struct SkinCells
 /// and lowers lattice layers [j B, (j + 1) B] of its layer j, so the even layers are done in parallel (each in sample
 /// order), then the odd ones; the result is the same for any thread count. Marks the brick each sample is read from
 /// in `holdsSkin`; returns the number of samples that read > 0.
-int lowerSkinReadings(const Lattice& L, const SkinCells& skin, OwnedPoints& owned,
-					  const std::vector<std::int8_t>& brickSign, int threads, std::vector<char>& holdsSkin)
+int lowerSkinReadings(const Lattice& L, const SkinCells& skin, OwnedPoints& owned, const BrickNeighbours& neighbours,
+					  int threads, std::vector<char>& holdsSkin)
 {
 	const int layers = L.dims[kSlabAxis];
 	std::vector<int> lowered(std::size_t(layers), 0);
@@ -1108,7 +1141,7 @@ int lowerSkinReadings(const Lattice& L, const SkinCells& skin, OwnedPoints& owne
 				{
 					const CellLocation& c = skin.cell[std::size_t(skin.order[std::size_t(r)])];
 					holdsSkin[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))] = 1;
-					lowered[std::size_t(j)] += lowerSkinReading(L, c, owned, brickSign) ? 1 : 0;
+					lowered[std::size_t(j)] += lowerSkinReading(L, c, owned, neighbours) ? 1 : 0;
 				}
 		});
 	}
@@ -1122,7 +1155,7 @@ int lowerSkinReadings(const Lattice& L, const SkinCells& skin, OwnedPoints& owne
 /// stored field: the bricks holding skin samples are stored, with the owned points' values. On `threads` threads (a
 /// maximum does not depend on the order).
 double largestSkinReading(const Lattice& L, const SkinCells& skin, const OwnedPoints& owned,
-						  const std::vector<std::int8_t>& brickSign, double quantum, double clamp, int threads)
+						  const BrickNeighbours& neighbours, double quantum, double clamp, int threads)
 {
 	const int n = int(skin.cell.size());
 	std::vector<double> worst(std::size_t(std::max(1, std::min(threads, n))), 0.0);
@@ -1130,7 +1163,7 @@ double largestSkinReading(const Lattice& L, const SkinCells& skin, const OwnedPo
 		for (int i = first; i < end; ++i)
 			worst[std::size_t(part)] =
 				std::max(worst[std::size_t(part)],
-						 std::abs(std::clamp(cellReading(L, owned, brickSign, skin.cell[std::size_t(i)]) * quantum,
+						 std::abs(std::clamp(cellReading(L, owned, neighbours, skin.cell[std::size_t(i)]) * quantum,
 											 -clamp, clamp)));
 	});
 	return *std::max_element(worst.begin(), worst.end());
@@ -1345,7 +1378,8 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 
 	const SkinCells skin(L, skinSamplePoints(mesh, L.h));
 	std::vector<char> stored(std::size_t(L.brickCount()), 0);
-	field.loweredSamples = lowerSkinReadings(L, skin, owned, brickSign, threads, stored);
+	const BrickNeighbours neighbours(L, owned, brickSign);
+	field.loweredSamples = lowerSkinReadings(L, skin, owned, neighbours, threads, stored);
 	const double halfDiagonal = 0.5 * std::sqrt(3.0) * B * L.h;
 	const GrownUnion grown(ellipsoids, options.skinOffset + 2.0 * L.h);
 	for (int slot = 0; slot < int(owned.slotBrick.size()); ++slot)
@@ -1359,7 +1393,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	}
 	gatherBricks(L, owned, brickSign, stored, field);
 	field.maxError =
-		std::max(field.maxError, largestSkinReading(L, skin, owned, brickSign, field.quantum(), field.clamp, threads));
+		std::max(field.maxError, largestSkinReading(L, skin, owned, neighbours, field.quantum(), field.clamp, threads));
 	return field;
 }
 
