@@ -847,6 +847,12 @@ void signFarPointsInSlab(const Lattice& L, int firstJ, int endJ, OwnedPoints& ow
 	std::vector<long long> exactX;
 	std::vector<std::int8_t> exactSign;
 	std::vector<int> nearI, nearSlot; // the near bricks of the brick row, and their slots
+	struct FarRun
+	{
+		long long p, X; ///< the first point's owned index and x lattice coordinate
+		int count;
+	};
+	std::vector<FarRun> pending; // the row's far points not decided yet
 	for (int k = 0; k < L.dims[2]; ++k)
 		for (int j = firstJ; j < endJ; ++j)
 		{
@@ -857,28 +863,48 @@ void signFarPointsInSlab(const Lattice& L, int firstJ, int endJ, OwnedPoints& ow
 			for (int c = 0; c < B; ++c)
 				for (int b = 0; b < B; ++b)
 				{
-					exactX.clear(), exactSign.clear();
+					// One sweep along the row: the far points since the last exact point wait in `pending` (as runs of
+					// consecutive points in one brick) until the next exact point (or the row's end) decides them, as
+					// runSign would.
+					const bool brickRow = b == 0 && c == 0; // the row that also signs the bricks that are not near
+					exactX.clear(), exactSign.clear(), pending.clear();
+					long long lastX = -1; // the last exact point (-1: none yet, whose run reads +)
+					std::int8_t lastSign = 1;
+					auto decide = [&](long long nextX, std::int8_t nextSign) {
+						for (const FarRun& run : pending)
+							for (int m = 0; m < run.count; ++m)
+							{
+								const long long X = run.X + m;
+								const long long left = lastX >= 0 ? X - lastX : X + 1;
+								owned.sign[std::size_t(run.p + m)] = left <= nextX - X ? lastSign : nextSign;
+							}
+						pending.clear();
+					};
 					for (std::size_t n = 0; n < nearI.size(); ++n)
 					{
 						const long long row = (long long)nearSlot[n] * kOwned + B * (b + B * c);
-						for (int a = 0; a < B; ++a)
-							if (owned.touched(row + a))
-								exactX.push_back((long long)nearI[n] * B + a), exactSign.push_back(owned.sign[std::size_t(row + a)]);
-					}
-					std::size_t next = 0;
-					for (std::size_t n = 0; n < nearI.size(); ++n)
+						const long long X0 = (long long)nearI[n] * B;
+						int runStart = 0; // the far points [runStart, a) of this brick's row wait
 						for (int a = 0; a < B; ++a)
 						{
-							const long long p = (long long)nearSlot[n] * kOwned + a + B * (b + B * c);
-							const long long X = (long long)nearI[n] * B + a;
-							while (next < exactX.size() && exactX[next] < X)
-								++next;
-							if (!owned.touched(p))
-								owned.sign[std::size_t(p)] = runSign(exactX, exactSign, next, X, rowLength);
+							if (!owned.touched(row + a))
+								continue;
+							if (runStart < a)
+								pending.push_back({row + runStart, X0 + runStart, a - runStart});
+							runStart = a + 1;
+							const std::int8_t sign = owned.sign[std::size_t(row + a)];
+							decide(X0 + a, sign);
+							lastX = X0 + a, lastSign = sign;
+							if (brickRow)
+								exactX.push_back(X0 + a), exactSign.push_back(sign);
 						}
-					if (b != 0 || c != 0)
+						if (runStart < B)
+							pending.push_back({row + runStart, X0 + runStart, B - runStart});
+					}
+					decide(rowLength, 1);
+					if (!brickRow)
 						continue;
-					next = 0;
+					std::size_t next = 0;
 					for (int i = 0; i < L.dims[0]; ++i)
 					{
 						const long long X = (long long)i * B;
