@@ -944,6 +944,14 @@ int latticeQuanta(const Lattice& L, const OwnedPoints& owned, const std::vector<
 	return brickSign[std::size_t(L.brickId(int(X / B), int(Y / B), int(Z / B)))] < 0 ? -kMaxQuanta : kMaxQuanta;
 }
 
+/// std::round of x in [0, 2^52) without the library call: the fraction x - floor(x) is exact in floating point, so
+/// this is round half away from zero, to the bit.
+inline double roundNonNegative(double x)
+{
+	const double whole = double((long long)x); // x >= 0: truncation is floor
+	return x - whole >= 0.5 ? whole + 1.0 : whole;
+}
+
 /// The owned points' signed distances in quanta (on `threads` threads: each point on its own).
 void quantise(OwnedPoints& owned, double quantum, int threads)
 {
@@ -952,7 +960,7 @@ void quantise(OwnedPoints& owned, double quantum, int threads)
 		for (std::size_t p = std::size_t(first) * kOwned; p < std::size_t(end) * kOwned; ++p)
 		{
 			const double magnitude = owned.touched((long long)p)
-										 ? std::min(double(kMaxQuanta), std::round(std::sqrt(double(owned.best2[p])) / quantum))
+										 ? std::min(double(kMaxQuanta), roundNonNegative(std::sqrt(double(owned.best2[p])) / quantum))
 										 : double(kMaxQuanta);
 			owned.quanta[p] = std::int16_t(owned.sign[p] < 0 ? -magnitude : magnitude);
 		}
