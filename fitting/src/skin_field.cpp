@@ -437,6 +437,10 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 	// so that a row's interval is a branch-free min and max (both exact, so the order of the planes does not matter).
 	double c[kMaxPlanes], du[kMaxPlanes], dv[kMaxPlanes], inv[kMaxPlanes], atV[kMaxPlanes];
 	int upper = 0, lower = 0;
+	// A row's bounds are exact to ~1e-15 m / |dr| lattice steps; with every |dr| >= kSteep that is < 1e-8 steps, far
+	// below kMissR (lattice steps), and the planes that do not depend on r are exact to far below kMissC (metres).
+	constexpr double kSteep = 1e-6, kMissR = 1e-6, kMissC = 1e-9;
+	bool steep = true;
 	for (int kind = 1; kind >= -1; kind -= 2)
 	{
 		for (int k = 0; k < planes; ++k)
@@ -449,6 +453,7 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 			du[lower] = L.h * n[ua];
 			dv[lower] = L.h * n[va];
 			inv[lower++] = -1.0 / dr;
+			steep = steep && std::abs(dr) >= kSteep;
 		}
 		if (kind > 0)
 			upper = lower;
@@ -477,23 +482,34 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 	{
 		for (int k = 0; k < lower; ++k)
 			atV[k] = c[k] + dv[k] * double(V);
+		// The rows of this V that meet the region are consecutive in U (the region is convex): ra0 - ra1 and each
+		// plane that does not depend on r are convex in U, so once a row met the region, a row that misses it by a
+		// margin above the rounding is followed by rows that miss it too, and the scan of this V ends.
+		bool met = false;
 		for (long long U = lo[ua]; U <= hi[ua]; ++U)
 		{
 			double ra0 = double(lo[ra]), ra1 = double(hi[ra]);
-			bool outside = false; // a plane that does not depend on r excludes the row
+			double worst = -std::numeric_limits<double>::infinity(); // of the planes that do not depend on r
 			for (int k = constant; k < lower; ++k)
-				outside = outside || atV[k] + du[k] * double(U) > 0.0;
+				worst = std::max(worst, atV[k] + du[k] * double(U));
 			for (int k = 0; k < upper; ++k) // c0 + dr r <= 0 with c0 = atV + du U
 				ra1 = std::min(ra1, (atV[k] + du[k] * double(U)) * inv[k]);
 			for (int k = upper; k < constant; ++k)
 				ra0 = std::max(ra0, (atV[k] + du[k] * double(U)) * inv[k]);
-			if (outside || ra0 > ra1)
+			if (worst > 0.0 || ra0 > ra1) // a plane that does not depend on r excludes the row, or the interval is empty
+			{
+				if (met && steep && (worst > kMissC || ra0 - ra1 > kMissR))
+					break;
 				continue;
-			// The row's points in T's plane frame: from its first point, one lattice step along ra at a time.
-			P[ua] = U, P[va] = V, P[ra] = (long long)std::ceil(ra0);
+			}
+			met = true;
+			// The row's points in T's plane frame: from its first point, one lattice step along ra at a time. ra1 >=
+			// ra0 >= lo >= 0 here, so truncation is floor, and ceil is truncation stepped up for a fraction.
+			const long long whole = (long long)ra0;
+			P[ua] = U, P[va] = V, P[ra] = double(whole) < ra0 ? whole + 1 : whole;
 			const Eigen::Vector3d d = L.point(P[0], P[1], P[2]) - T.v0;
 			double s = d.dot(T.u), t = d.dot(T.v), w = d.dot(T.n);
-			const long long last = ra == sa ? std::min((long long)std::floor(ra1), slab.hi) : (long long)std::floor(ra1);
+			const long long last = ra == sa ? std::min((long long)ra1, slab.hi) : (long long)ra1;
 			// The owned index found through the brick index where the row enters a brick, then a stride along it.
 			long long p = -1;
 			for (const long long first = P[ra]; P[ra] <= last; ++P[ra], s += step[0], t += step[1], w += step[2])
