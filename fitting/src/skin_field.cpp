@@ -437,6 +437,10 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 	// so that a row's interval is a branch-free min and max (both exact, so the order of the planes does not matter).
 	double c[kMaxPlanes], du[kMaxPlanes], dv[kMaxPlanes], inv[kMaxPlanes], atV[kMaxPlanes];
 	int upper = 0, lower = 0;
+	// A row's bounds are exact to ~1e-15 m / |dr| lattice steps; with every |dr| >= kSteep that is < 1e-8 steps, far
+	// below kMissR (lattice steps), and the planes that do not depend on r are exact to far below kMissC (metres).
+	constexpr double kSteep = 1e-6, kMissR = 1e-6, kMissC = 1e-9;
+	bool steep = true;
 	for (int kind = 1; kind >= -1; kind -= 2)
 	{
 		for (int k = 0; k < planes; ++k)
@@ -449,6 +453,7 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 			du[lower] = L.h * n[ua];
 			dv[lower] = L.h * n[va];
 			inv[lower++] = -1.0 / dr;
+			steep = steep && std::abs(dr) >= kSteep;
 		}
 		if (kind > 0)
 			upper = lower;
@@ -477,23 +482,34 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 	{
 		for (int k = 0; k < lower; ++k)
 			atV[k] = c[k] + dv[k] * double(V);
+		// The rows of this V that meet the region are consecutive in U (the region is convex): ra0 - ra1 and each
+		// plane that does not depend on r are convex in U, so once a row met the region, a row that misses it by a
+		// margin above the rounding is followed by rows that miss it too, and the scan of this V ends.
+		bool met = false;
 		for (long long U = lo[ua]; U <= hi[ua]; ++U)
 		{
 			double ra0 = double(lo[ra]), ra1 = double(hi[ra]);
-			bool outside = false; // a plane that does not depend on r excludes the row
+			double worst = -std::numeric_limits<double>::infinity(); // of the planes that do not depend on r
 			for (int k = constant; k < lower; ++k)
-				outside = outside || atV[k] + du[k] * double(U) > 0.0;
+				worst = std::max(worst, atV[k] + du[k] * double(U));
 			for (int k = 0; k < upper; ++k) // c0 + dr r <= 0 with c0 = atV + du U
 				ra1 = std::min(ra1, (atV[k] + du[k] * double(U)) * inv[k]);
 			for (int k = upper; k < constant; ++k)
 				ra0 = std::max(ra0, (atV[k] + du[k] * double(U)) * inv[k]);
-			if (outside || ra0 > ra1)
+			if (worst > 0.0 || ra0 > ra1) // a plane that does not depend on r excludes the row, or the interval is empty
+			{
+				if (met && steep && (worst > kMissC || ra0 - ra1 > kMissR))
+					break;
 				continue;
-			// The row's points in T's plane frame: from its first point, one lattice step along ra at a time.
-			P[ua] = U, P[va] = V, P[ra] = (long long)std::ceil(ra0);
+			}
+			met = true;
+			// The row's points in T's plane frame: from its first point, one lattice step along ra at a time. ra1 >=
+			// ra0 >= lo >= 0 here, so truncation is floor, and ceil is truncation stepped up for a fraction.
+			const long long whole = (long long)ra0;
+			P[ua] = U, P[va] = V, P[ra] = double(whole) < ra0 ? whole + 1 : whole;
 			const Eigen::Vector3d d = L.point(P[0], P[1], P[2]) - T.v0;
 			double s = d.dot(T.u), t = d.dot(T.v), w = d.dot(T.n);
-			const long long last = ra == sa ? std::min((long long)std::floor(ra1), slab.hi) : (long long)std::floor(ra1);
+			const long long last = ra == sa ? std::min((long long)ra1, slab.hi) : (long long)ra1;
 			// The owned index found through the brick index where the row enters a brick, then a stride along it.
 			long long p = -1;
 			for (const long long first = P[ra]; P[ra] <= last; ++P[ra], s += step[0], t += step[1], w += step[2])
@@ -847,6 +863,12 @@ void signFarPointsInSlab(const Lattice& L, int firstJ, int endJ, OwnedPoints& ow
 	std::vector<long long> exactX;
 	std::vector<std::int8_t> exactSign;
 	std::vector<int> nearI, nearSlot; // the near bricks of the brick row, and their slots
+	struct FarRun
+	{
+		long long p, X; ///< the first point's owned index and x lattice coordinate
+		int count;
+	};
+	std::vector<FarRun> pending; // the row's far points not decided yet
 	for (int k = 0; k < L.dims[2]; ++k)
 		for (int j = firstJ; j < endJ; ++j)
 		{
@@ -857,28 +879,48 @@ void signFarPointsInSlab(const Lattice& L, int firstJ, int endJ, OwnedPoints& ow
 			for (int c = 0; c < B; ++c)
 				for (int b = 0; b < B; ++b)
 				{
-					exactX.clear(), exactSign.clear();
+					// One sweep along the row: the far points since the last exact point wait in `pending` (as runs of
+					// consecutive points in one brick) until the next exact point (or the row's end) decides them, as
+					// runSign would.
+					const bool brickRow = b == 0 && c == 0; // the row that also signs the bricks that are not near
+					exactX.clear(), exactSign.clear(), pending.clear();
+					long long lastX = -1; // the last exact point (-1: none yet, whose run reads +)
+					std::int8_t lastSign = 1;
+					auto decide = [&](long long nextX, std::int8_t nextSign) {
+						for (const FarRun& run : pending)
+							for (int m = 0; m < run.count; ++m)
+							{
+								const long long X = run.X + m;
+								const long long left = lastX >= 0 ? X - lastX : X + 1;
+								owned.sign[std::size_t(run.p + m)] = left <= nextX - X ? lastSign : nextSign;
+							}
+						pending.clear();
+					};
 					for (std::size_t n = 0; n < nearI.size(); ++n)
 					{
 						const long long row = (long long)nearSlot[n] * kOwned + B * (b + B * c);
-						for (int a = 0; a < B; ++a)
-							if (owned.touched(row + a))
-								exactX.push_back((long long)nearI[n] * B + a), exactSign.push_back(owned.sign[std::size_t(row + a)]);
-					}
-					std::size_t next = 0;
-					for (std::size_t n = 0; n < nearI.size(); ++n)
+						const long long X0 = (long long)nearI[n] * B;
+						int runStart = 0; // the far points [runStart, a) of this brick's row wait
 						for (int a = 0; a < B; ++a)
 						{
-							const long long p = (long long)nearSlot[n] * kOwned + a + B * (b + B * c);
-							const long long X = (long long)nearI[n] * B + a;
-							while (next < exactX.size() && exactX[next] < X)
-								++next;
-							if (!owned.touched(p))
-								owned.sign[std::size_t(p)] = runSign(exactX, exactSign, next, X, rowLength);
+							if (!owned.touched(row + a))
+								continue;
+							if (runStart < a)
+								pending.push_back({row + runStart, X0 + runStart, a - runStart});
+							runStart = a + 1;
+							const std::int8_t sign = owned.sign[std::size_t(row + a)];
+							decide(X0 + a, sign);
+							lastX = X0 + a, lastSign = sign;
+							if (brickRow)
+								exactX.push_back(X0 + a), exactSign.push_back(sign);
 						}
-					if (b != 0 || c != 0)
+						if (runStart < B)
+							pending.push_back({row + runStart, X0 + runStart, B - runStart});
+					}
+					decide(rowLength, 1);
+					if (!brickRow)
 						continue;
-					next = 0;
+					std::size_t next = 0;
 					for (int i = 0; i < L.dims[0]; ++i)
 					{
 						const long long X = (long long)i * B;
@@ -918,6 +960,14 @@ int latticeQuanta(const Lattice& L, const OwnedPoints& owned, const std::vector<
 	return brickSign[std::size_t(L.brickId(int(X / B), int(Y / B), int(Z / B)))] < 0 ? -kMaxQuanta : kMaxQuanta;
 }
 
+/// std::round of x in [0, 2^52) without the library call: the fraction x - floor(x) is exact in floating point, so
+/// this is round half away from zero, to the bit.
+inline double roundNonNegative(double x)
+{
+	const double whole = double((long long)x); // x >= 0: truncation is floor
+	return x - whole >= 0.5 ? whole + 1.0 : whole;
+}
+
 /// The owned points' signed distances in quanta (on `threads` threads: each point on its own).
 void quantise(OwnedPoints& owned, double quantum, int threads)
 {
@@ -926,12 +976,81 @@ void quantise(OwnedPoints& owned, double quantum, int threads)
 		for (std::size_t p = std::size_t(first) * kOwned; p < std::size_t(end) * kOwned; ++p)
 		{
 			const double magnitude = owned.touched((long long)p)
-										 ? std::min(double(kMaxQuanta), std::round(std::sqrt(double(owned.best2[p])) / quantum))
+										 ? std::min(double(kMaxQuanta), roundNonNegative(std::sqrt(double(owned.best2[p])) / quantum))
 										 : double(kMaxQuanta);
 			owned.quanta[p] = std::int16_t(owned.sign[p] < 0 ? -magnitude : magnitude);
 		}
 	});
 }
+
+/// The trilinear weights of a cell's 8 corners (corner n at +(n & 1, n >> 1 & 1, n >> 2)), formed as trilinear() forms
+/// them: (x y) z.
+void cornerWeights(const CellLocation& c, double weight[8])
+{
+	const double x[2] = {1.0 - c.frac[0], c.frac[0]}, y[2] = {1.0 - c.frac[1], c.frac[1]};
+	const double z[2] = {1.0 - c.frac[2], c.frac[2]};
+	const double xy[4] = {x[0] * y[0], x[1] * y[0], x[0] * y[1], x[1] * y[1]};
+	for (int n = 0; n < 8; ++n)
+		weight[n] = xy[n & 3] * z[n >> 2];
+}
+
+/// The owned index of corner 0 of a cell whose 8 corners are all owned points of its own near brick (the cell is not
+/// on the brick's upper faces), else -1: the common case, which reads the quanta without CellCorners.
+long long interiorCellBase(const Lattice& L, const OwnedPoints& owned, const CellLocation& c)
+{
+	if (c.cell[0] >= B - 1 || c.cell[1] >= B - 1 || c.cell[2] >= B - 1)
+		return -1;
+	const int slot = owned.brickSlot[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))];
+	return slot < 0 ? -1 : (long long)slot * kOwned + c.cell[0] + B * (c.cell[1] + B * c.cell[2]);
+}
+
+/// Per near brick, what its cells' corners read from itself and the 7 bricks above it (m = 1 x + 2 y + 4 z for the
+/// brick at +(x, y, z)): a near brick's slot, or kFarOutsideCode / kFarInsideCode for a brick that is not near (its
+/// sign at full clamp) or off the grid (outside). Found once for the skin samples' cells.
+struct BrickNeighbours
+{
+	static constexpr int kFarOutsideCode = -1, kFarInsideCode = -2;
+	const Lattice& L;
+	const OwnedPoints& owned;
+	const std::vector<std::int8_t>& brickSign;
+	std::vector<int> code; ///< slot s's: code[8 s .. 8 s + 8)
+
+	BrickNeighbours(const Lattice& lattice, const OwnedPoints& points, const std::vector<std::int8_t>& sign)
+		: L(lattice), owned(points), brickSign(sign)
+	{
+		code.resize(owned.slotBrick.size() * 8);
+		for (std::size_t slot = 0; slot < owned.slotBrick.size(); ++slot)
+			codes(owned.slotBrick[slot], &code[slot * 8]);
+	}
+
+	/// The 8 codes of `brick`: from the table for a near brick, else found into `scratch`.
+	const int* of(int brick, int scratch[8]) const
+	{
+		const int slot = owned.brickSlot[std::size_t(brick)];
+		if (slot >= 0)
+			return code.data() + std::size_t(slot) * 8;
+		codes(brick, scratch); // not met by a skin sample, whose brick is within clamp of a triangle (near)
+		return scratch;
+	}
+
+private:
+	void codes(int brick, int out[8]) const
+	{
+		const int i = brick % L.dims[0], j = (brick / L.dims[0]) % L.dims[1], k = brick / (L.dims[0] * L.dims[1]);
+		for (int m = 0; m < 8; ++m)
+		{
+			const int a = i + (m & 1), b = j + ((m >> 1) & 1), c = k + (m >> 2);
+			if (a >= L.dims[0] || b >= L.dims[1] || c >= L.dims[2])
+			{
+				out[m] = kFarOutsideCode;
+				continue;
+			}
+			const int id = L.brickId(a, b, c);
+			const int slot = owned.brickSlot[std::size_t(id)];
+			out[m] = slot >= 0 ? slot : brickSign[std::size_t(id)] < 0 ? kFarInsideCode : kFarOutsideCode;
+		}
+	}
+};
 
 /// The owned points at the 8 corners of a cell (corner n at +(n & 1, n >> 1 & 1, n >> 2) lattice steps; -1 for a
 /// corner in a brick that is not near, whose quanta are then in `constant`), and the trilinear reading in quanta.
@@ -941,45 +1060,27 @@ struct CellCorners
 	int constant[8];
 	double weight[8];
 
-	CellCorners(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign, const CellLocation& c)
+	CellCorners(const Lattice& L, const BrickNeighbours& neighbours, const CellLocation& c)
 	{
-		for (int n = 0; n < 8; ++n)
-			weight[n] = ((n & 1) ? c.frac[0] : 1.0 - c.frac[0]) * ((n & 2) ? c.frac[1] : 1.0 - c.frac[1]) *
-						((n & 4) ? c.frac[2] : 1.0 - c.frac[2]);
-		const int slot = owned.brickSlot[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))];
-		if (slot >= 0 && c.cell[0] < B - 1 && c.cell[1] < B - 1 && c.cell[2] < B - 1)
-		{
-			const long long base = (long long)slot * kOwned + c.cell[0] + B * (c.cell[1] + B * c.cell[2]);
-			for (int n = 0; n < 8; ++n) // all 8 corners in the cell's own brick
-				point[n] = base + (n & 1) + B * ((n >> 1) & 1) + B * B * (n >> 2);
-			return;
-		}
-		// A cell on the brick's upper faces: a corner at local B is local 0 of the brick above on that axis (the
-		// same values as owned.index and latticeQuanta give, without the lattice divisions). Per axis, the brick and
-		// local coordinate of the cell's lower (0) and upper (1) corners.
-		int brick[3][2], local[3][2];
-		bool onGrid[3][2];
+		cornerWeights(c, weight);
+		// A corner at local B is local 0 of the brick above on that axis (the same values as owned.index and
+		// latticeQuanta give, without the lattice divisions). Per axis, whether the cell's upper corner carries into
+		// the brick above, and the local coordinates of its lower (0) and upper (1) corners.
+		int scratch[8];
+		const int* code = neighbours.of(L.brickId(c.brick[0], c.brick[1], c.brick[2]), scratch);
+		int carry[3], local[3][2];
 		for (int k = 0; k < 3; ++k)
 		{
-			const bool carry = c.cell[k] == B - 1;
-			brick[k][0] = c.brick[k], local[k][0] = c.cell[k], onGrid[k][0] = true;
-			brick[k][1] = c.brick[k] + (carry ? 1 : 0), local[k][1] = carry ? 0 : c.cell[k] + 1;
-			onGrid[k][1] = brick[k][1] < L.dims[k];
+			carry[k] = c.cell[k] == B - 1 ? 1 : 0;
+			local[k][0] = c.cell[k];
+			local[k][1] = carry[k] ? 0 : c.cell[k] + 1;
 		}
 		for (int n = 0; n < 8; ++n)
 		{
 			const int x = n & 1, y = (n >> 1) & 1, z = n >> 2;
-			point[n] = -1;
-			if (!(onGrid[0][x] && onGrid[1][y] && onGrid[2][z]))
-			{
-				constant[n] = kMaxQuanta;
-				continue;
-			}
-			const int id = L.brickId(brick[0][x], brick[1][y], brick[2][z]);
-			if (const int s = owned.brickSlot[std::size_t(id)]; s >= 0)
-				point[n] = (long long)s * kOwned + local[0][x] + B * (local[1][y] + B * local[2][z]);
-			else
-				constant[n] = brickSign[std::size_t(id)] < 0 ? -kMaxQuanta : kMaxQuanta;
+			const int s = code[(x & carry[0]) | (y & carry[1]) << 1 | (z & carry[2]) << 2];
+			point[n] = s >= 0 ? (long long)s * kOwned + local[0][x] + B * (local[1][y] + B * local[2][z]) : -1;
+			constant[n] = s == BrickNeighbours::kFarInsideCode ? -kMaxQuanta : kMaxQuanta;
 		}
 	}
 
@@ -994,12 +1095,36 @@ struct CellCorners
 	}
 };
 
+/// The reading in quanta of an interior cell (interiorCellBase): the same sum, in the same order, as
+/// CellCorners::reading. The corners of zero weight are added too: w q is then +-0, which leaves the sum (never -0,
+/// as it starts at +0) unchanged.
+double interiorReading(const OwnedPoints& owned, long long base, const CellLocation& c)
+{
+	double weight[8];
+	cornerWeights(c, weight);
+	const std::int16_t* q = owned.quanta.data() + base;
+	constexpr int offset[8] = {0, 1, B, B + 1, B * B, B * B + 1, B * B + B, B * B + B + 1};
+	double sum = 0.0;
+	for (int n = 0; n < 8; ++n)
+		sum += weight[n] * double(q[offset[n]]);
+	return sum;
+}
+
+/// The reading in quanta of a skin sample's cell: interiorReading where it applies, else through CellCorners.
+double cellReading(const Lattice& L, const OwnedPoints& owned, const BrickNeighbours& neighbours, const CellLocation& c)
+{
+	const long long base = interiorCellBase(L, owned, c);
+	return base >= 0 ? interiorReading(owned, base, c) : CellCorners(L, neighbours, c).reading(owned);
+}
+
 /// Step 4 for one skin sample: when it reads r > 0 the 8 corners of its cell are lowered by the least change that
 /// brings it to 0 (corner i by w_i r / sum w^2, w the trilinear weights, rounded up to whole quanta). True when it
 /// read > 0.
-bool lowerSkinReading(const Lattice& L, const CellLocation& c, OwnedPoints& owned, const std::vector<std::int8_t>& brickSign)
+bool lowerSkinReading(const Lattice& L, const CellLocation& c, OwnedPoints& owned, const BrickNeighbours& neighbours)
 {
-	const CellCorners corners(L, owned, brickSign, c);
+	if (cellReading(L, owned, neighbours, c) <= 0.0)
+		return false; // most samples: read once, cheaply
+	const CellCorners corners(L, neighbours, c);
 	const double reading = corners.reading(owned);
 	if (reading <= 0.0)
 		return false;
@@ -1052,8 +1177,8 @@ struct SkinCells
 /// and lowers lattice layers [j B, (j + 1) B] of its layer j, so the even layers are done in parallel (each in sample
 /// order), then the odd ones; the result is the same for any thread count. Marks the brick each sample is read from
 /// in `holdsSkin`; returns the number of samples that read > 0.
-int lowerSkinReadings(const Lattice& L, const SkinCells& skin, OwnedPoints& owned,
-					  const std::vector<std::int8_t>& brickSign, int threads, std::vector<char>& holdsSkin)
+int lowerSkinReadings(const Lattice& L, const SkinCells& skin, OwnedPoints& owned, const BrickNeighbours& neighbours,
+					  int threads, std::vector<char>& holdsSkin)
 {
 	const int layers = L.dims[kSlabAxis];
 	std::vector<int> lowered(std::size_t(layers), 0);
@@ -1066,7 +1191,7 @@ int lowerSkinReadings(const Lattice& L, const SkinCells& skin, OwnedPoints& owne
 				{
 					const CellLocation& c = skin.cell[std::size_t(skin.order[std::size_t(r)])];
 					holdsSkin[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))] = 1;
-					lowered[std::size_t(j)] += lowerSkinReading(L, c, owned, brickSign) ? 1 : 0;
+					lowered[std::size_t(j)] += lowerSkinReading(L, c, owned, neighbours) ? 1 : 0;
 				}
 		});
 	}
@@ -1080,7 +1205,7 @@ int lowerSkinReadings(const Lattice& L, const SkinCells& skin, OwnedPoints& owne
 /// stored field: the bricks holding skin samples are stored, with the owned points' values. On `threads` threads (a
 /// maximum does not depend on the order).
 double largestSkinReading(const Lattice& L, const SkinCells& skin, const OwnedPoints& owned,
-						  const std::vector<std::int8_t>& brickSign, double quantum, double clamp, int threads)
+						  const BrickNeighbours& neighbours, double quantum, double clamp, int threads)
 {
 	const int n = int(skin.cell.size());
 	std::vector<double> worst(std::size_t(std::max(1, std::min(threads, n))), 0.0);
@@ -1088,7 +1213,7 @@ double largestSkinReading(const Lattice& L, const SkinCells& skin, const OwnedPo
 		for (int i = first; i < end; ++i)
 			worst[std::size_t(part)] =
 				std::max(worst[std::size_t(part)],
-						 std::abs(std::clamp(CellCorners(L, owned, brickSign, skin.cell[std::size_t(i)]).reading(owned) * quantum,
+						 std::abs(std::clamp(cellReading(L, owned, neighbours, skin.cell[std::size_t(i)]) * quantum,
 											 -clamp, clamp)));
 	});
 	return *std::max_element(worst.begin(), worst.end());
@@ -1303,7 +1428,8 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 
 	const SkinCells skin(L, skinSamplePoints(mesh, L.h));
 	std::vector<char> stored(std::size_t(L.brickCount()), 0);
-	field.loweredSamples = lowerSkinReadings(L, skin, owned, brickSign, threads, stored);
+	const BrickNeighbours neighbours(L, owned, brickSign);
+	field.loweredSamples = lowerSkinReadings(L, skin, owned, neighbours, threads, stored);
 	const double halfDiagonal = 0.5 * std::sqrt(3.0) * B * L.h;
 	const GrownUnion grown(ellipsoids, options.skinOffset + 2.0 * L.h);
 	for (int slot = 0; slot < int(owned.slotBrick.size()); ++slot)
@@ -1317,7 +1443,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	}
 	gatherBricks(L, owned, brickSign, stored, field);
 	field.maxError =
-		std::max(field.maxError, largestSkinReading(L, skin, owned, brickSign, field.quantum(), field.clamp, threads));
+		std::max(field.maxError, largestSkinReading(L, skin, owned, neighbours, field.quantum(), field.clamp, threads));
 	return field;
 }
 
