@@ -77,6 +77,7 @@ void btEllipsoidClothStats::reset()
 	m_skinMarchLimits = 0;
 	m_boneFieldNodes = 0;
 	m_boneFieldFallbacks = 0;
+	m_skinMeshNodes = 0;
 }
 
 void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
@@ -97,6 +98,7 @@ void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
 	m_skinMarchLimits += other.m_skinMarchLimits;
 	m_boneFieldNodes += other.m_boneFieldNodes;
 	m_boneFieldFallbacks += other.m_boneFieldFallbacks;
+	m_skinMeshNodes += other.m_skinMeshNodes;
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -188,7 +190,9 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_escapeHints(0),
 	  m_contactNodeBase(0),
 	  m_boneFields(false),
-	  m_skinGroup(-1)
+	  m_skinGroup(-1),
+	  m_skinMesh(0),
+	  m_skinMeshRevision(-1)
 {
 	m_previousPose.setIdentity();
 	m_currentPose.setIdentity();
@@ -362,6 +366,7 @@ void btEllipsoidClothColliderCore::updateWorldCache(bool continuing)
 	m_skinGeometry.begin(m_sweeping || m_compound->getBindPose() ? 0 : activeSkinField(),
 						 btMax(m_config.m_skinOffset, btScalar(0)), m_currentPose);
 	prepareBoneFields(); // a skinned body: the field of the bind pose in each bone's frame (btSkinFieldResponse.cpp)
+	prepareSkinMesh();   // ... and its skin of the instant where those frames cannot decide (btSkinMeshResponse.cpp)
 }
 
 void btEllipsoidClothColliderCore::endSubstep()
@@ -593,6 +598,8 @@ bool btEllipsoidClothColliderCore::collideSweptNode(btSoftBody::Node& node, cons
 	++m_lastStats.m_nodesTested;
 	if (m_boneFields && collideOnBoneField(node, q, nc, substep))
 		return false; // decided on the bind field in the candidates' bone frame: no pocket test (it rests in the union)
+	if (m_skinMesh && collideOnSkinMesh(node, q, nc, substep))
+		return false; // decided on the skin of the instant: no pocket test either
 	// 2. Narrow phase in each candidate's moving frame: u_q = W0 (q - c0) -> u_x = W1 (x - c1).
 	btPathEntry entry;
 	const btPathEnds ends(q, x);

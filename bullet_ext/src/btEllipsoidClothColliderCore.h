@@ -161,6 +161,9 @@ private:
 	btAlignedObjectArray<int> m_groupBone;                     ///< per group: its first bone
 	btAlignedObjectArray<int> m_groupFirst;                    ///< per group: its first ellipsoid
 	btAlignedObjectArray<int> m_boneFallbacks;  ///< accumulated per ellipsoid: nodes it sent to the union response
+	// ... and on the skinned mesh of the instant where the bone frames cannot decide (btSkinMeshResponse.cpp).
+	const btSkinMesh* m_skinMesh; ///< the compound's skin mesh when usable this substep (see prepareSkinMesh), else 0
+	int m_skinMeshRevision;       ///< its revision at the previous substep (-1: none)
 
 	btTransform interpolatedKinematicPose();
 	/// Moves the body pose forward by one substep (m_previousPose, m_currentPose, m_delta).
@@ -245,6 +248,17 @@ private:
 	/// `value` (the field at the node) follows the slide.
 	bool respondOnSkin(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface, const btVector3& start,
 					   const btVector3& center, const Substep& substep, btScalar remaining, btScalar& value);
+
+	// Tight mode on a skinned body, the skin of the instant (btSkinMeshResponse.cpp).
+	/// Once per substep after prepareBoneFields: m_skinMesh is the compound's mesh when this substep sweeps in tight
+	/// mode and the mesh took exactly one pose since the previous substep (its previous pose is this substep's start).
+	void prepareSkinMesh();
+	/// A node the bind field could not decide whose end lies inside the current union: decided on the skinned mesh
+	/// (left where it is at the skin offset or more, else placed at the offset along the closest triangle's normal,
+	/// with the velocity rule) when the mesh query can be trusted (true); else nothing changes (false).
+	bool collideOnSkinMesh(btSoftBody::Node& node, const btVector3& q, int nc, const Substep& substep);
+	/// x (world) inside a current pose of one of the nc candidates.
+	bool insideCurrentCandidate(const btVector3& x, const int* cand, int nc) const;
 };
 
 #endif // BT_ELLIPSOID_CLOTH_COLLIDER_CORE_H

@@ -1,0 +1,131 @@
+/*
+bodyfit: Bullet extension for ellipsoid body colliders. See bullet_ext/README.md, "Tight skin surface" (animated
+bodies) and btSkinMesh.h.
+Tight mode on a skinned body, where the bind-pose field in a bone's frame cannot decide (joints: a candidate refitted
+or of another bone group): the node is decided on the skinned mesh of the instant, which the skinning driver writes
+with the ellipsoids. The union stays the conservative bound: only a node whose end lies inside the current union is
+looked at (outside the union is outside the skin), and every case the mesh query cannot vouch for keeps the union
+response (no triangle near, a closest-point direction far from the triangle's normal, a long path relative to the
+skin, a deep end).
+
+Why the nearest skin is the skin the node met: the node starts outside the skin (the previous substep left it there)
+and its path relative to the skin under it (the start carried by the motion of its closest skin point) is at most
+kMaxRelativePath long, and its end at most kMaxDepth deep. A wrong side needs the node to pass a part of the body
+thinner than that within one substep; the union response it replaces does not tell such parts apart either.
+*/
+
+#include "src/btEllipsoidClothColliderCore.h"
+#include "src/btEllipsoidClothResponse.h"
+
+namespace
+{
+
+/// Nodes farther than this from the skin of the instant (metres) keep the union response.
+const btScalar kSearchRadius = btScalar(0.03);
+/// The longest node path relative to the skin under it, and the deepest end below the skin, that the mesh decides.
+const btScalar kMaxRelativePath = btScalar(0.005);
+const btScalar kMaxDepth = btScalar(0.005);
+/// The direction from the closest point to the node must be within acos(0.9) = 26 degrees of the triangle's normal
+/// for its sign to be trusted: exact at a face's interior point; at an edge or a corner the direction lies in the
+/// (outward or inward) cone of the normals of the faces there, so the sign agrees with the pseudo-normal unless two of
+/// those faces fold back by more than 154 degrees.
+const btScalar kMinNormalCosine = btScalar(0.9);
+/// Below this distance (metres) a point is on the skin: side 0, whatever the direction.
+const btScalar kOnSkin = btScalar(1e-6);
+/// A placed node lands this far (metres) above the skin offset (the distance is recomputed there; rounding of
+/// coordinates of a few metres in float is ~1e-6 m).
+const btScalar kLift = btScalar(1e-4);
+/// Projections onto the offset surface before a placement gives up (a crease: each step can meet another triangle).
+const int kMaxProjections = 4;
+
+/// The signed distance of p (body frame) to the skin: `near` its closest point; false when the sign is not trusted or
+/// no skin lies within kSearchRadius.
+bool signedSkinDistance(const btSkinMesh& mesh, const btVector3& p, btSkinMeshPoint& near, btScalar& side)
+{
+	if (!mesh.closestPoint(p, kSearchRadius, near))
+		return false;
+	const btVector3 n = mesh.getNormal(near.m_triangle);
+	if (n.length2() == btScalar(0))
+		return false; // a degenerate triangle
+	if (near.m_distance <= kOnSkin)
+	{
+		side = btScalar(0);
+		return true;
+	}
+	const btScalar along = (p - near.m_point).dot(n);
+	if (btFabs(along) < kMinNormalCosine * near.m_distance)
+		return false;
+	side = along > btScalar(0) ? near.m_distance : -near.m_distance;
+	return true;
+}
+
+} // namespace
+
+void btEllipsoidClothColliderCore::prepareSkinMesh()
+{
+	const btSkinMesh* mesh = m_compound->getSkinMesh();
+	const int revision = mesh ? mesh->getRevision() : -1;
+	const bool onePose = mesh && m_skinMeshRevision >= 0 && revision == m_skinMeshRevision + 1;
+	m_skinMesh = onePose && m_sweeping && activeSkinField() && mesh->getNumTriangles() > 0 ? mesh : 0;
+	m_skinMeshRevision = revision;
+}
+
+bool btEllipsoidClothColliderCore::insideCurrentCandidate(const btVector3& x, const int* cand, int nc) const
+{
+	// The swept candidates hold every current ellipsoid near x (a swept box contains the current box).
+	return btMinZetaPacked(m_current.getPackedRecords(), cand, nc, x, 0) < btScalar(1);
+}
+
+bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, const btVector3& q, int nc,
+													 const Substep& substep)
+{
+	// (A dynamic body would take reaction impulses of a mesh that does not move it.)
+	if (m_dynamicBody || !insideCurrentCandidate(node.m_x, substep.m_candidates, nc))
+		return false;
+	const btSkinMesh& mesh = *m_skinMesh;
+	const btScalar offset = btMax(m_config.m_skinOffset, btScalar(0));
+	btSkinMeshPoint near;
+	btScalar side;
+	if (!signedSkinDistance(mesh, m_currentPose.invXform(node.m_x), near, side))
+		return false;
+	if (side < -kMaxDepth)
+		return false;
+	// The start carried with the skin under the node: the path relative to that skin.
+	const btVector3 start = q + (m_currentPose * near.m_point - m_previousPose * mesh.previousPoint(near));
+	if ((node.m_x - start).length2() > kMaxRelativePath * kMaxRelativePath)
+		return false;
+	++m_lastStats.m_skinMeshNodes;
+	if (side >= offset)
+		return true; // outside the skin by the offset: no contact
+	// Placement at the offset along the closest triangle's normal, repeated from there while another triangle is
+	// nearer (a crease).
+	const btScalar startSide = side;
+	btVector3 p = near.m_point;
+	for (int i = 0; side < offset; ++i)
+	{
+		p = near.m_point + mesh.getNormal(near.m_triangle) * (offset + kLift);
+		if (i == kMaxProjections || !signedSkinDistance(mesh, p, near, side))
+		{
+			--m_lastStats.m_skinMeshNodes;
+			return false;
+		}
+	}
+	if (startSide < btScalar(0))
+		++m_lastStats.m_nodesPushedOut;
+	else
+		++m_lastStats.m_nodesCorrected;
+	node.m_x = m_currentPose * p;
+	const btVector3 normal = m_currentPose.getBasis() * mesh.getNormal(near.m_triangle);
+	const btVector3 surface = m_currentPose * near.m_point;
+	const btVector3 bodyVelocity =
+		substep.m_dt > btScalar(0) ? (surface - m_previousPose * mesh.previousPoint(near)) / substep.m_dt
+								   : btVector3(0, 0, 0);
+	btNodeContacts contacts;
+	contacts.add(normal);
+	const btVector3 before = node.m_v;
+	const btVector3 center = m_current[substep.m_candidates[0]].m_center; // for PAPER_EQ10
+	const btVector3 vr = btRelativeVelocityAfterContact(m_config.m_velocityRule, substep.m_friction,
+														node.m_v - bodyVelocity, contacts, surface, start, center);
+	setContactVelocity(node, vr, normal, start, bodyVelocity, before, surface, substep.m_dt);
+	return true;
+}
