@@ -3,7 +3,6 @@ bodyfit: the skinned skin as a refitted triangle mesh. See btSkinMesh.h.
 */
 
 #include "bodyfit/bullet_ext/btSkinMesh.h"
-#include <chrono>
 
 namespace
 {
@@ -236,14 +235,9 @@ btVector3* btSkinMesh::beginPose()
 	return m_poses[m_current].size() > 0 ? &m_poses[m_current][0] : 0;
 }
 
-struct TmpMeshCount;
-extern TmpMeshCount g_tmpMesh;
-void tmpCount(int nodes, int tris);
 void btSkinMesh::endPose()
 {
-	const auto t0 = std::chrono::steady_clock::now();
 	refit();
-	tmpCount(m_nodes.size(), int(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count()));
 	++m_revision;
 }
 
@@ -322,7 +316,3 @@ btVector3 btSkinMesh::previousPoint(const btSkinMeshPoint& point) const
 	return previous[m_triangles[3 * t]] * point.m_bary[0] + previous[m_triangles[3 * t + 1]] * point.m_bary[1] +
 		   previous[m_triangles[3 * t + 2]] * point.m_bary[2];
 }
-#include <cstdio>
-struct TmpMeshCount { long long poses = 0, nodes = 0, tris = 0; ~TmpMeshCount() { std::fprintf(stderr, "TMP mesh: poses %lld nodes %lld tris %lld\n", poses, nodes, tris); } };
-TmpMeshCount g_tmpMesh;
-void tmpCount(int nodes, int tris) { ++g_tmpMesh.poses; g_tmpMesh.nodes = nodes; g_tmpMesh.tris += tris; }

@@ -23,8 +23,8 @@ namespace
 /// Nodes farther than this from the skin of the instant (metres) keep the union response.
 const btScalar kSearchRadius = btScalar(0.03);
 /// The longest node path relative to the skin under it, and the deepest end below the skin, that the mesh decides.
-const btScalar kMaxRelativePath = btScalar(0.005);
-const btScalar kMaxDepth = btScalar(0.005);
+const btScalar kMaxRelativePath = btScalar(0.010);
+const btScalar kMaxDepth = btScalar(0.010);
 /// The direction from the closest point to the node must be within acos(0.9) = 26 degrees of the triangle's normal
 /// for its sign to be trusted: exact at a face's interior point; at an edge or a corner the direction lies in the
 /// (outward or inward) cone of the normals of the faces there, so the sign agrees with the pseudo-normal unless two of
