@@ -188,6 +188,7 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_substepDt(btScalar(0)),
 	  m_contactFlags(0),
 	  m_escapeHints(0),
+	  m_skinMeshHints(0),
 	  m_contactNodeBase(0),
 	  m_boneFields(false),
 	  m_skinGroup(-1),
@@ -407,6 +408,8 @@ void btEllipsoidClothColliderCore::beginContactRecord(const btSoftBody* softBody
 		memset(m_contactFlags, 0, size_t(n)); // (a byte loop here was 1.3% of the collider's instructions)
 	record.m_escapeHints.resize(n, (unsigned char)btEllipsoidUnionPushOut::kNoEscapeHint);
 	m_escapeHints = n > 0 ? &record.m_escapeHints[0] : 0;
+	record.m_skinMeshHints.resize(n, -1);
+	m_skinMeshHints = n > 0 ? &record.m_skinMeshHints[0] : 0;
 	m_contactNodeBase = n > 0 ? &softBody->m_nodes[0] : 0;
 }
 
@@ -468,6 +471,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	{
 		m_contactFlags = 0;
 		m_escapeHints = 0;
+		m_skinMeshHints = 0;
 		return;
 	}
 	Substep substep(m_current, btMax(m_config.m_skinOffset, btScalar(0)), dt, m_sweepOnGrid ? &m_sweep : 0,
@@ -517,6 +521,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	}
 	m_contactFlags = 0;
 	m_escapeHints = 0;
+	m_skinMeshHints = 0;
 	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
 	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
 }

@@ -105,6 +105,7 @@ private:
 		bool m_current;
 		btAlignedObjectArray<unsigned char> m_flags;
 		btAlignedObjectArray<unsigned char> m_escapeHints;
+		btAlignedObjectArray<int> m_skinMeshHints; ///< per node: its closest skin-mesh triangle last time, or -1
 	};
 
 	btEllipsoidCompoundShape* m_ownedCompound;
@@ -140,6 +141,7 @@ private:
 	btAlignedObjectArray<ContactRecord> m_contactRecords; ///< per soft body processed in the last substep
 	unsigned char* m_contactFlags;             ///< the flags collide() fills (0 outside collide())
 	unsigned char* m_escapeHints;              ///< that soft body's escape hints (0 outside collide())
+	int* m_skinMeshHints;                      ///< that soft body's skin-mesh hints (0 outside collide())
 	const btSoftBody::Node* m_contactNodeBase; ///< node 0 of that soft body
 
 	/// The soft body's record, cleared and sized to its nodes, marked current; m_contactFlags points into it.

@@ -241,6 +241,7 @@ void btSkinMesh::endPose()
 	++m_revision;
 }
 
+
 namespace
 {
 btScalar boxDistance2(const btVector3& p, const btVector3& lo, const btVector3& hi)
@@ -255,13 +256,44 @@ btScalar boxDistance2(const btVector3& p, const btVector3& lo, const btVector3& 
 }
 } // namespace
 
-bool btSkinMesh::closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoint& out) const
+void btSkinMesh::consider(const btVector3& p, int t, btScalar& best2, btSkinMeshPoint& out) const
+{
+	const btVector3& a = vertex(t, 0);
+	const btVector3& b = vertex(t, 1);
+	const btVector3& c = vertex(t, 2);
+	btVector3 lo = a, hi = a;
+	lo.setMin(b);
+	lo.setMin(c);
+	hi.setMax(b);
+	hi.setMax(c);
+	if (boxDistance2(p, lo, hi) > best2)
+		return; // (the box holds the triangle: it cannot be nearer)
+	btScalar bary[3];
+	btClosestOnTriangle(p, a, b, c, bary);
+	const btVector3 q = a * bary[0] + b * bary[1] + c * bary[2];
+	const btScalar d2 = (p - q).length2();
+	if (d2 < best2 || (d2 == best2 && (out.m_triangle < 0 || t < out.m_triangle)))
+	{
+		best2 = d2;
+		out.m_triangle = t;
+		out.m_bary[0] = bary[0];
+		out.m_bary[1] = bary[1];
+		out.m_bary[2] = bary[2];
+		out.m_point = q;
+	}
+}
+
+bool btSkinMesh::closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoint& out, int hint) const
 {
 	out.m_triangle = -1;
 	out.m_distance = radius;
 	if (m_nodes.size() == 0)
 		return false;
 	btScalar best2 = radius * radius;
+	// The hint bounds the search; every box within that bound is still opened (the pruning below is strict), so
+	// the answer, ties included, is the same as without it.
+	if (hint >= 0 && hint < getNumTriangles())
+		consider(p, hint, best2, out);
 	int stack[64];
 	int top = 0;
 	stack[top++] = 0;
@@ -272,7 +304,7 @@ bool btSkinMesh::closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoi
 			continue;
 		if (node.m_right >= 0)
 		{
-			// Nearer child last (popped first); the depth is about log2(triangles / 4), far below the stack size.
+			// Nearer child last (popped first); the depth is about log2(triangles / 8), far below the stack size.
 			const int left = int(&node - &m_nodes[0]) + 1;
 			const btScalar dl = boxDistance2(p, m_nodes[left].m_min, m_nodes[left].m_max);
 			const btScalar dr = boxDistance2(p, m_nodes[node.m_right].m_min, m_nodes[node.m_right].m_max);
@@ -283,25 +315,7 @@ bool btSkinMesh::closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoi
 			continue;
 		}
 		for (int k = 0; k < node.m_count; ++k)
-		{
-			const int t = m_order[node.m_first + k];
-			const btVector3& a = vertex(t, 0);
-			const btVector3& b = vertex(t, 1);
-			const btVector3& c = vertex(t, 2);
-			btScalar bary[3];
-			btClosestOnTriangle(p, a, b, c, bary);
-			const btVector3 q = a * bary[0] + b * bary[1] + c * bary[2];
-			const btScalar d2 = (p - q).length2();
-			if (d2 < best2 || (d2 == best2 && out.m_triangle >= 0 && t < out.m_triangle))
-			{
-				best2 = d2;
-				out.m_triangle = t;
-				out.m_bary[0] = bary[0];
-				out.m_bary[1] = bary[1];
-				out.m_bary[2] = bary[2];
-				out.m_point = q;
-			}
-		}
+			consider(p, m_order[node.m_first + k], best2, out);
 	}
 	if (out.m_triangle < 0)
 		return false;

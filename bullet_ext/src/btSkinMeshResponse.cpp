@@ -39,10 +39,10 @@ const btScalar kLift = btScalar(1e-4);
 const int kMaxProjections = 4;
 
 /// The signed distance of p (body frame) to the skin: `near` its closest point; false when the sign is not trusted or
-/// no skin lies within kSearchRadius.
-bool signedSkinDistance(const btSkinMesh& mesh, const btVector3& p, btSkinMeshPoint& near, btScalar& side)
+/// no skin lies within kSearchRadius. `hint`: a triangle near p, or -1 (btSkinMesh::closestPoint).
+bool signedSkinDistance(const btSkinMesh& mesh, const btVector3& p, btSkinMeshPoint& near, btScalar& side, int hint)
 {
-	if (!mesh.closestPoint(p, kSearchRadius, near))
+	if (!mesh.closestPoint(p, kSearchRadius, near, hint))
 		return false;
 	const btVector3 n = mesh.getNormal(near.m_triangle);
 	if (n.length2() == btScalar(0))
@@ -86,7 +86,11 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 	const btScalar offset = btMax(m_config.m_skinOffset, btScalar(0));
 	btSkinMeshPoint near;
 	btScalar side;
-	if (!signedSkinDistance(mesh, m_currentPose.invXform(node.m_x), near, side))
+	int* hint = m_skinMeshHints ? &m_skinMeshHints[&node - m_contactNodeBase] : 0;
+	const bool signedNear = signedSkinDistance(mesh, m_currentPose.invXform(node.m_x), near, side, hint ? *hint : -1);
+	if (hint)
+		*hint = near.m_triangle; // (-1 when no skin is near)
+	if (!signedNear)
 		return false;
 	if (side < -kMaxDepth)
 		return false;
@@ -104,7 +108,7 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 	for (int i = 0; side < offset; ++i)
 	{
 		p = near.m_point + mesh.getNormal(near.m_triangle) * (offset + kLift);
-		if (i == kMaxProjections || !signedSkinDistance(mesh, p, near, side))
+		if (i == kMaxProjections || !signedSkinDistance(mesh, p, near, side, near.m_triangle))
 		{
 			--m_lastStats.m_skinMeshNodes;
 			return false;

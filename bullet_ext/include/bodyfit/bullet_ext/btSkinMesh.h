@@ -38,8 +38,10 @@ public:
 	void endPose();
 
 	/// The closest point of the current pose to p if one lies within `radius` (else out.m_triangle = -1 and false).
-	/// Ties go to the triangle met first, in a fixed order: the result depends on the inputs only.
-	bool closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoint& out) const;
+	/// Ties go to the lowest triangle index: the result depends on p and the pose only. `hint` (a triangle, e.g. the
+	/// last answer for a point that moved little; -1 none) only starts the search with its distance, so fewer boxes
+	/// are opened.
+	bool closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoint& out, int hint = -1) const;
 	/// The same barycentric point in the previous pose.
 	btVector3 previousPoint(const btSkinMeshPoint& point) const;
 	/// Unit outward normal of a triangle in the current pose ((0, 0, 0) for a degenerate one).
@@ -68,6 +70,8 @@ private:
 	int m_revision;
 
 	int build(int first, int count, const btAlignedObjectArray<btVector3>& centroids);
+	/// Takes triangle t as out's closest point when it is nearer than best2 (or as near, with a lower index).
+	void consider(const btVector3& p, int t, btScalar& best2, btSkinMeshPoint& out) const;
 	/// The leaves' corner lists (m_leafVertices), once after build().
 	void collectLeafVertices();
 	const btVector3& vertex(int t, int corner) const { return m_poses[m_current][m_triangles[3 * t + corner]]; }
