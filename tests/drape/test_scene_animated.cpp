@@ -453,6 +453,7 @@ TEST_CASE("the tight surface on an animated body rests the cloth near the skin a
 	// The walk skirt: the hips and thighs bend, so the bind field in a bone's frame decides few nodes there; the
 	// skinned mesh of the instant decides most of the others. Before it, the union decided them and the touched nodes
 	// rested at the union, 15.6 mm from the skin on average over the whole clip (README, animated bodies).
+	// Deterministic: the same bytes on every run, so the bound below only has to separate the two behaviours.
 	Scene scene = loadScene(std::string(BODYFIT_SCENE_DIR) + "/animated_walk_skirt.json");
 	scene.sampleEvery = 5;
 	const BodyData body = loadBody(scene);
@@ -462,5 +463,8 @@ TEST_CASE("the tight surface on an animated body rests the cloth near the skin a
 	CHECK(m["max_nan_nodes"].get<int>() == 0);
 	REQUIRE(m.contains("bone_field"));
 	CHECK(m["bone_field"]["mesh_nodes"].get<long long>() > 0);
-	// GAP_BOUND
+	// Over these 120 steps (1 s of the walk) the touched nodes rest 5.7 mm from the skin on average, against 15.7 mm
+	// when the union decided the joints (2026-12-04); 8 mm fails if the mesh stops deciding them, whatever the noise
+	// of a few nodes.
+	CHECK(m["mean_contact_gap_m"].get<double>() < 0.008);
 }
