@@ -255,12 +255,19 @@ private:
 	/// Once per substep after prepareBoneFields: m_skinMesh is the compound's mesh when this substep sweeps in tight
 	/// mode and the mesh took exactly one pose since the previous substep (its previous pose is this substep's start).
 	void prepareSkinMesh();
-	/// A node the bind field could not decide whose end lies inside the current union: decided on the skinned mesh
-	/// (left where it is at the skin offset or more, else placed at the offset along the closest triangle's normal,
-	/// with the velocity rule) when the mesh query can be trusted (true); else nothing changes (false).
+	/// A tested node the bind field could not decide: decided on the skinned mesh (left where it is at the skin
+	/// offset or more, else placed at the offset along the closest triangle's normal, with the velocity rule; a long
+	/// path relative to the skin traced by traceLongPath) when the mesh query can be trusted (true); else nothing
+	/// changes (false) and the union response decides.
 	bool collideOnSkinMesh(btSoftBody::Node& node, const btVector3& q, int nc, const Substep& substep);
-	/// x (world) inside a current pose of one of the nc candidates.
-	bool insideCurrentCandidate(const btVector3& x, const int* cand, int nc) const;
+	/// A node whose path relative to the skin under it is long: that path (from `start`, body frame) sphere-traced on
+	/// the distance to the skin: left at its end when no point comes within the offset, else placed at the first point
+	/// that does (true); false (nothing changed) when the start is not outside or the trace runs out of steps.
+	bool traceLongPath(btSoftBody::Node& node, const btVector3& start, const Substep& substep);
+	/// The velocity rule at a node placed on the skin mesh: `surface` its closest skin point, `surfaceBefore` where
+	/// that point was at the start of the substep (world).
+	void placedOnSkinMesh(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface,
+						  const btVector3& surfaceBefore, const btVector3& start, const Substep& substep);
 };
 
 #endif // BT_ELLIPSOID_CLOTH_COLLIDER_CORE_H

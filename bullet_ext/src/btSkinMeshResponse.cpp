@@ -2,16 +2,18 @@
 bodyfit: Bullet extension for ellipsoid body colliders. See bullet_ext/README.md, "Tight skin surface" (animated
 bodies) and btSkinMesh.h.
 Tight mode on a skinned body, where the bind-pose field in a bone's frame cannot decide (joints: a candidate refitted
-or of another bone group): the node is decided on the skinned mesh of the instant, which the skinning driver writes
-with the ellipsoids. The union stays the conservative bound: only a node whose end lies inside the current union is
-looked at (outside the union is outside the skin), and every case the mesh query cannot vouch for keeps the union
-response (no triangle near, a closest-point direction far from the triangle's normal, a long path relative to the
-skin, a deep end).
+or of another bone group): a node the union's swept broad phase kept is decided on the skinned mesh of the instant,
+which the skinning driver writes with the ellipsoids. Every case the mesh query cannot vouch for keeps the swept
+union response, the conservative one: no triangle within kSearchRadius, a closest-point direction far from the
+triangle's normal (the sign), an end deeper than kMaxDepth, a long relative path whose start is not outside or whose
+trace runs out of steps.
 
 Why the nearest skin is the skin the node met: the node starts outside the skin (the previous substep left it there)
 and its path relative to the skin under it (the start carried by the motion of its closest skin point) is at most
 kMaxRelativePath long, and its end at most kMaxDepth deep. A wrong side needs the node to pass a part of the body
-thinner than that within one substep; the union response it replaces does not tell such parts apart either.
+thinner than that within one substep; the union response it replaces does not tell such parts apart either. A longer
+relative path is sphere-traced from its carried start on the distance to the skin (traceOnSkin), which cannot pass
+the offset surface; the carried start approximates the skin's motion near the node by that of one skin point.
 */
 
 #include "src/btEllipsoidClothColliderCore.h"
@@ -59,6 +61,48 @@ bool signedSkinDistance(const btSkinMesh& mesh, const btVector3& p, btSkinMeshPo
 	return true;
 }
 
+/// Steps of the sphere trace of a long relative path before it gives up (the union then decides).
+const int kMaxTraceSteps = 32;
+
+/// Sphere tracing of the path a -> b (body frame) on the distance to the skin, from a start outside it by at least
+/// the offset (sign trusted): a point at distance d has no skin within d, so every point within d - offset of it is
+/// at least the offset from the skin, and the trace steps that far. \return false when the start is not outside or
+/// the steps run out; else `hit` is the first point found within kLift above the offset (clear = false, `near` its
+/// closest point) or b (clear = true: no point of the path comes within the offset).
+bool traceOnSkin(const btSkinMesh& mesh, const btVector3& a, const btVector3& b, btScalar offset, btVector3& hit,
+				 btSkinMeshPoint& near, bool& clear)
+{
+	btScalar side;
+	if (!signedSkinDistance(mesh, a, near, side, -1) || side < offset)
+		return false;
+	const btVector3 d = b - a;
+	const btScalar len = d.length();
+	btScalar s = btScalar(0), dist = side;
+	for (int i = 0; i < kMaxTraceSteps; ++i)
+	{
+		const btScalar step = dist - offset;
+		if (step <= kLift)
+		{
+			if (near.m_triangle < 0)
+				return false; // (a distance of kSearchRadius is never this small)
+			hit = a + d * (s / len);
+			clear = false;
+			return true;
+		}
+		s += step;
+		if (s >= len)
+		{
+			hit = b;
+			clear = true;
+			return true;
+		}
+		const btVector3 p = a + d * (s / len);
+		const int hint = near.m_triangle;
+		dist = mesh.closestPoint(p, kSearchRadius, near, hint) ? near.m_distance : kSearchRadius;
+	}
+	return false;
+}
+
 } // namespace
 
 void btEllipsoidClothColliderCore::prepareSkinMesh()
@@ -70,17 +114,31 @@ void btEllipsoidClothColliderCore::prepareSkinMesh()
 	m_skinMeshRevision = revision;
 }
 
-bool btEllipsoidClothColliderCore::insideCurrentCandidate(const btVector3& x, const int* cand, int nc) const
+bool btEllipsoidClothColliderCore::traceLongPath(btSoftBody::Node& node, const btVector3& start, const Substep& substep)
 {
-	// The swept candidates hold every current ellipsoid near x (a swept box contains the current box).
-	return btMinZetaPacked(m_current.getPackedRecords(), cand, nc, x, 0) < btScalar(1);
+	const btScalar offset = btMax(m_config.m_skinOffset, btScalar(0));
+	btVector3 hit;
+	btSkinMeshPoint near;
+	bool clear;
+	if (!traceOnSkin(*m_skinMesh, start, m_currentPose.invXform(node.m_x), offset, hit, near, clear))
+		return false;
+	++m_lastStats.m_skinMeshNodes;
+	if (clear)
+		return true;
+	++m_lastStats.m_nodesCorrected;
+	node.m_x = m_currentPose * hit;
+	const btVector3 surface = m_currentPose * near.m_point;
+	placedOnSkinMesh(node, (node.m_x - surface).normalized(), surface, m_previousPose * m_skinMesh->previousPoint(near),
+					 m_currentPose * start, substep);
+	return true;
 }
 
 bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, const btVector3& q, int nc,
 													 const Substep& substep)
 {
 	// (A dynamic body would take reaction impulses of a mesh that does not move it.)
-	if (m_dynamicBody || !insideCurrentCandidate(node.m_x, substep.m_candidates, nc))
+	(void)nc; // (every tested node: its sign comes from the mesh, not from the union)
+	if (m_dynamicBody)
 		return false;
 	const btSkinMesh& mesh = *m_skinMesh;
 	const btScalar offset = btMax(m_config.m_skinOffset, btScalar(0));
@@ -97,7 +155,7 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 	// The start carried with the skin under the node: the path relative to that skin.
 	const btVector3 start = q + (m_currentPose * near.m_point - m_previousPose * mesh.previousPoint(near));
 	if ((node.m_x - start).length2() > kMaxRelativePath * kMaxRelativePath)
-		return false;
+		return traceLongPath(node, m_currentPose.invXform(start), substep);
 	++m_lastStats.m_skinMeshNodes;
 	if (side >= offset)
 		return true; // outside the skin by the offset: no contact
@@ -119,11 +177,18 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 	else
 		++m_lastStats.m_nodesCorrected;
 	node.m_x = m_currentPose * p;
-	const btVector3 normal = m_currentPose.getBasis() * mesh.getNormal(near.m_triangle);
 	const btVector3 surface = m_currentPose * near.m_point;
+	placedOnSkinMesh(node, m_currentPose.getBasis() * mesh.getNormal(near.m_triangle), surface,
+					 m_previousPose * mesh.previousPoint(near), start, substep);
+	return true;
+}
+
+void btEllipsoidClothColliderCore::placedOnSkinMesh(btSoftBody::Node& node, const btVector3& normal,
+												   const btVector3& surface, const btVector3& surfaceBefore,
+												   const btVector3& start, const Substep& substep)
+{
 	const btVector3 bodyVelocity =
-		substep.m_dt > btScalar(0) ? (surface - m_previousPose * mesh.previousPoint(near)) / substep.m_dt
-								   : btVector3(0, 0, 0);
+		substep.m_dt > btScalar(0) ? (surface - surfaceBefore) / substep.m_dt : btVector3(0, 0, 0);
 	btNodeContacts contacts;
 	contacts.add(normal);
 	const btVector3 before = node.m_v;
@@ -131,5 +196,4 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 	const btVector3 vr = btRelativeVelocityAfterContact(m_config.m_velocityRule, substep.m_friction,
 														node.m_v - bodyVelocity, contacts, surface, start, center);
 	setContactVelocity(node, vr, normal, start, bodyVelocity, before, surface, substep.m_dt);
-	return true;
 }
