@@ -257,8 +257,10 @@ void printSummary(const bodyfit::drape::Scene& scene, const bodyfit::drape::Drap
 	if (metrics.contains("bone_field"))
 	{
 		const nlohmann::json& b = metrics["bone_field"];
-		std::printf("tight      %.1f%% of the tested nodes decided on the bind-pose field in a bone's frame, %lld by the "
-					"union (fallback)", 100.0 * b["field_share"].get<double>(), b["fallback_nodes"].get<long long>());
+		std::printf("tight      %.1f%% of the tested nodes decided on the bind-pose field in a bone's frame, %.1f%% on the "
+					"skinned mesh, %lld by the union (fallback)",
+					100.0 * b["field_share"].get<double>(), 100.0 * b.value("mesh_share", 0.0),
+					b["fallback_nodes"].get<long long>());
 		for (std::size_t k = 0; k < b["fallback_at"].size() && k < 4; ++k)
 		{
 			const nlohmann::json& w = b["fallback_at"][k];

@@ -77,6 +77,7 @@ void btEllipsoidClothStats::reset()
 	m_skinMarchLimits = 0;
 	m_boneFieldNodes = 0;
 	m_boneFieldFallbacks = 0;
+	m_skinMeshNodes = 0;
 }
 
 void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
@@ -97,6 +98,7 @@ void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
 	m_skinMarchLimits += other.m_skinMarchLimits;
 	m_boneFieldNodes += other.m_boneFieldNodes;
 	m_boneFieldFallbacks += other.m_boneFieldFallbacks;
+	m_skinMeshNodes += other.m_skinMeshNodes;
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -186,9 +188,12 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_substepDt(btScalar(0)),
 	  m_contactFlags(0),
 	  m_escapeHints(0),
+	  m_skinMeshHints(0),
 	  m_contactNodeBase(0),
 	  m_boneFields(false),
-	  m_skinGroup(-1)
+	  m_skinGroup(-1),
+	  m_skinMesh(0),
+	  m_skinMeshRevision(-1)
 {
 	m_previousPose.setIdentity();
 	m_currentPose.setIdentity();
@@ -362,6 +367,7 @@ void btEllipsoidClothColliderCore::updateWorldCache(bool continuing)
 	m_skinGeometry.begin(m_sweeping || m_compound->getBindPose() ? 0 : activeSkinField(),
 						 btMax(m_config.m_skinOffset, btScalar(0)), m_currentPose);
 	prepareBoneFields(); // a skinned body: the field of the bind pose in each bone's frame (btSkinFieldResponse.cpp)
+	prepareSkinMesh();   // ... and its skin of the instant where those frames cannot decide (btSkinMeshResponse.cpp)
 }
 
 void btEllipsoidClothColliderCore::endSubstep()
@@ -402,6 +408,8 @@ void btEllipsoidClothColliderCore::beginContactRecord(const btSoftBody* softBody
 		memset(m_contactFlags, 0, size_t(n)); // (a byte loop here was 1.3% of the collider's instructions)
 	record.m_escapeHints.resize(n, (unsigned char)btEllipsoidUnionPushOut::kNoEscapeHint);
 	m_escapeHints = n > 0 ? &record.m_escapeHints[0] : 0;
+	record.m_skinMeshHints.resize(n, -1);
+	m_skinMeshHints = n > 0 ? &record.m_skinMeshHints[0] : 0;
 	m_contactNodeBase = n > 0 ? &softBody->m_nodes[0] : 0;
 }
 
@@ -463,6 +471,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	{
 		m_contactFlags = 0;
 		m_escapeHints = 0;
+		m_skinMeshHints = 0;
 		return;
 	}
 	Substep substep(m_current, btMax(m_config.m_skinOffset, btScalar(0)), dt, m_sweepOnGrid ? &m_sweep : 0,
@@ -512,6 +521,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	}
 	m_contactFlags = 0;
 	m_escapeHints = 0;
+	m_skinMeshHints = 0;
 	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
 	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
 }
@@ -593,6 +603,8 @@ bool btEllipsoidClothColliderCore::collideSweptNode(btSoftBody::Node& node, cons
 	++m_lastStats.m_nodesTested;
 	if (m_boneFields && collideOnBoneField(node, q, nc, substep))
 		return false; // decided on the bind field in the candidates' bone frame: no pocket test (it rests in the union)
+	if (m_skinMesh && collideOnSkinMesh(node, q, nc, substep))
+		return false; // decided on the skin of the instant: no pocket test either
 	// 2. Narrow phase in each candidate's moving frame: u_q = W0 (q - c0) -> u_x = W1 (x - c1).
 	btPathEntry entry;
 	const btPathEnds ends(q, x);

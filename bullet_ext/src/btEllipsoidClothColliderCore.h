@@ -105,6 +105,7 @@ private:
 		bool m_current;
 		btAlignedObjectArray<unsigned char> m_flags;
 		btAlignedObjectArray<unsigned char> m_escapeHints;
+		btAlignedObjectArray<int> m_skinMeshHints; ///< per node: its closest skin-mesh triangle last time, or -1
 	};
 
 	btEllipsoidCompoundShape* m_ownedCompound;
@@ -140,6 +141,7 @@ private:
 	btAlignedObjectArray<ContactRecord> m_contactRecords; ///< per soft body processed in the last substep
 	unsigned char* m_contactFlags;             ///< the flags collide() fills (0 outside collide())
 	unsigned char* m_escapeHints;              ///< that soft body's escape hints (0 outside collide())
+	int* m_skinMeshHints;                      ///< that soft body's skin-mesh hints (0 outside collide())
 	const btSoftBody::Node* m_contactNodeBase; ///< node 0 of that soft body
 
 	/// The soft body's record, cleared and sized to its nodes, marked current; m_contactFlags points into it.
@@ -161,6 +163,9 @@ private:
 	btAlignedObjectArray<int> m_groupBone;                     ///< per group: its first bone
 	btAlignedObjectArray<int> m_groupFirst;                    ///< per group: its first ellipsoid
 	btAlignedObjectArray<int> m_boneFallbacks;  ///< accumulated per ellipsoid: nodes it sent to the union response
+	// ... and on the skinned mesh of the instant where the bone frames cannot decide (btSkinMeshResponse.cpp).
+	const btSkinMesh* m_skinMesh; ///< the compound's skin mesh when usable this substep (see prepareSkinMesh), else 0
+	int m_skinMeshRevision;       ///< its revision at the previous substep (-1: none)
 
 	btTransform interpolatedKinematicPose();
 	/// Moves the body pose forward by one substep (m_previousPose, m_currentPose, m_delta).
@@ -245,6 +250,24 @@ private:
 	/// `value` (the field at the node) follows the slide.
 	bool respondOnSkin(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface, const btVector3& start,
 					   const btVector3& center, const Substep& substep, btScalar remaining, btScalar& value);
+
+	// Tight mode on a skinned body, the skin of the instant (btSkinMeshResponse.cpp).
+	/// Once per substep after prepareBoneFields: m_skinMesh is the compound's mesh when this substep sweeps in tight
+	/// mode and the mesh took exactly one pose since the previous substep (its previous pose is this substep's start).
+	void prepareSkinMesh();
+	/// A tested node the bind field could not decide: decided on the skinned mesh (left where it is at the skin
+	/// offset or more, else placed at the offset along the closest triangle's normal, with the velocity rule; a long
+	/// path relative to the skin traced by traceLongPath) when the mesh query can be trusted (true); else nothing
+	/// changes (false) and the union response decides.
+	bool collideOnSkinMesh(btSoftBody::Node& node, const btVector3& q, int nc, const Substep& substep);
+	/// A node whose path relative to the skin under it is long: that path (from `start`, body frame) sphere-traced on
+	/// the distance to the skin: left at its end when no point comes within the offset, else placed at the first point
+	/// that does (true); false (nothing changed) when the start is not outside or the trace runs out of steps.
+	bool traceLongPath(btSoftBody::Node& node, const btVector3& start, const Substep& substep);
+	/// The velocity rule at a node placed on the skin mesh: `surface` its closest skin point, `surfaceBefore` where
+	/// that point was at the start of the substep (world).
+	void placedOnSkinMesh(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface,
+						  const btVector3& surfaceBefore, const btVector3& start, const Substep& substep);
 };
 
 #endif // BT_ELLIPSOID_CLOTH_COLLIDER_CORE_H

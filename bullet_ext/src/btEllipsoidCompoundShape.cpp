@@ -139,7 +139,8 @@ btEllipsoidCompoundShape::btEllipsoidCompoundShape(btScalar childMargin, bool dy
 	  m_skinField(0),
 	  m_ownsSkinField(false),
 	  m_bindPose(0),
-	  m_ownsBindPose(false)
+	  m_ownsBindPose(false),
+	  m_skinMesh(0)
 {
 }
 

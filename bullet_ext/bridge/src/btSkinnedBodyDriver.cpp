@@ -8,6 +8,7 @@ bodyfit: the skinned-body driver and the refitted triangle mesh. See btSkinnedBo
 
 #include "bodyfit/bridge/btEigenConversion.h"
 #include "bodyfit/bullet_ext/btEllipsoidCompoundShape.h"
+#include "bodyfit/bullet_ext/btSkinMesh.h"
 #include "bodyfit/bullet_ext/btTiming.h"
 
 #include <BulletCollision/CollisionShapes/btBvhTriangleMeshShape.h>
@@ -93,12 +94,39 @@ btSkinnedBodyDriver::btSkinnedBodyDriver(const Rig& rig, const BodyFit& fit, con
 	m_body->pose(clip, m_clipTime);
 }
 
+btSkinnedBodyDriver::~btSkinnedBodyDriver()
+{
+	if (m_compound && m_skinMesh && m_compound->getSkinMesh() == m_skinMesh.get())
+		m_compound->setSkinMesh(0);
+}
+
 void btSkinnedBodyDriver::setCompound(btEllipsoidCompoundShape* compound)
 {
 	if (compound && compound->getNumEllipsoids() != int(m_body->ellipsoids().size()))
 		throw InvalidInputError("btSkinnedBodyDriver: the compound has " + std::to_string(compound->getNumEllipsoids()) +
 								" ellipsoids, the skinned fit " + std::to_string(m_body->ellipsoids().size()));
+	if (m_compound && m_skinMesh && m_compound->getSkinMesh() == m_skinMesh.get())
+		m_compound->setSkinMesh(0);
 	m_compound = compound;
+	if (compound && compound->getBindPose() && compound->getSkinField() && !m_skinMesh)
+	{
+		const TriMesh& bind = m_body->rig().bindMesh;
+		std::vector<int> triangles(std::size_t(bind.F.rows()) * 3);
+		for (int f = 0; f < bind.F.rows(); ++f)
+			for (int k = 0; k < 3; ++k)
+				triangles[std::size_t(f) * 3 + std::size_t(k)] = bind.F(f, k);
+		btAlignedObjectArray<btVector3> vertices;
+		vertices.resize(int(bind.V.rows()));
+		for (int i = 0; i < bind.V.rows(); ++i)
+			vertices[i] = toBt(Eigen::Vector3d(bind.V.row(i).transpose()));
+		auto mesh = std::make_unique<btSkinMesh>();
+		const char* why = 0;
+		if (!mesh->setTopology(int(bind.V.rows()), triangles.data(), int(bind.F.rows()), &vertices[0], &why))
+			throw InvalidInputError(std::string("btSkinnedBodyDriver: ") + why);
+		m_skinMesh = std::move(mesh);
+	}
+	if (compound && compound->getBindPose() && compound->getSkinField())
+		compound->setSkinMesh(m_skinMesh.get());
 	writeCompound();
 }
 
@@ -108,6 +136,7 @@ void btSkinnedBodyDriver::setMesh(btRefitTriangleMesh* mesh)
 		throw InvalidInputError("btSkinnedBodyDriver: the triangle mesh has " + std::to_string(mesh->vertexCount()) +
 								" vertices, the skinned body " + std::to_string(m_body->vertices().rows()));
 	m_mesh = mesh;
+	m_stats.lastMeshSeconds = 0.0;
 	writeMesh();
 }
 
@@ -130,6 +159,7 @@ void btSkinnedBodyDriver::update(double simSeconds)
 void btSkinnedBodyDriver::writeCompound()
 {
 	m_stats.lastCompoundSeconds = 0.0;
+	m_stats.lastMeshSeconds = 0.0; // (the skin mesh here, the triangle mesh in writeMesh)
 	if (!m_compound)
 		return;
 	const auto t0 = std::chrono::steady_clock::now();
@@ -153,6 +183,21 @@ void btSkinnedBodyDriver::writeCompound()
 		writeBoneFrames();
 	m_stats.lastCompoundSeconds = btSecondsSince(t0);
 	m_stats.compoundSeconds += m_stats.lastCompoundSeconds;
+	if (m_skinMesh && m_compound->getSkinMesh() == m_skinMesh.get())
+		writeSkinMesh();
+}
+
+void btSkinnedBodyDriver::writeSkinMesh()
+{
+	const auto t0 = std::chrono::steady_clock::now();
+	const Eigen::MatrixX3d& v = m_body->vertices();
+	btVector3* out = m_skinMesh->beginPose();
+	for (int i = 0; i < v.rows(); ++i)
+		out[i].setValue(btScalar(v(i, 0)), btScalar(v(i, 1)), btScalar(v(i, 2)));
+	m_skinMesh->endPose();
+	const double seconds = btSecondsSince(t0);
+	m_stats.meshSeconds += seconds;
+	m_stats.lastMeshSeconds += seconds; // (writeMesh, which runs after, adds its own)
 }
 
 void btSkinnedBodyDriver::setFrameTolerance(double metres)
@@ -208,13 +253,13 @@ bool btSkinnedBodyDriver::movesWithBone(int j, int bone, const std::vector<Eigen
 
 void btSkinnedBodyDriver::writeMesh()
 {
-	m_stats.lastMeshSeconds = 0.0;
 	if (!m_mesh)
 		return;
 	const auto t0 = std::chrono::steady_clock::now();
 	m_mesh->setVertices(m_body->vertices());
-	m_stats.lastMeshSeconds = btSecondsSince(t0);
-	m_stats.meshSeconds += m_stats.lastMeshSeconds;
+	const double seconds = btSecondsSince(t0);
+	m_stats.lastMeshSeconds += seconds;
+	m_stats.meshSeconds += seconds;
 }
 
 } // namespace bodyfit

@@ -773,6 +773,7 @@ StepStats DrapeSimulation::step()
 		stats.collisionCpuSeconds += cs.m_collisionCpuSeconds;
 		stats.boneFieldNodes = cs.m_boneFieldNodes;
 		stats.boneFieldFallbacks = cs.m_boneFieldFallbacks;
+		stats.skinMeshNodes = cs.m_skinMeshNodes;
 	}
 	if (im.skinnedEffect)
 	{
@@ -906,12 +907,17 @@ struct SampleExtremes
 /// The tight surface on an animated body: the share of tested nodes decided on the bind-pose field in a bone's
 /// frame, and the ellipsoids whose nodes the union response decided most often (joints), with their bones.
 nlohmann::json boneFieldJson(const btEllipsoidClothCollider& collider, const SkinnedBody& body, long long fieldNodes,
-							 long long fallbackNodes)
+							 long long fallbackNodes, long long meshNodes)
 {
+	// fallbackNodes: not decided on the bind field; of those, meshNodes on the skinned mesh, the rest by the union.
 	const long long tested = fieldNodes + fallbackNodes;
+	const double share = tested > 0 ? 1.0 / double(tested) : 0.0;
 	nlohmann::json j = {{"field_nodes", fieldNodes},
-						{"fallback_nodes", fallbackNodes},
-						{"field_share", tested > 0 ? double(fieldNodes) / double(tested) : 0.0}};
+						{"mesh_nodes", meshNodes},
+						{"fallback_nodes", fallbackNodes - meshNodes},
+						{"field_share", double(fieldNodes) * share},
+						{"mesh_share", double(meshNodes) * share},
+						{"skin_share", double(fieldNodes + meshNodes) * share}};
 	const btAlignedObjectArray<int>& counts = collider.getBoneFieldFallbacks();
 	std::vector<int> order;
 	long long total = 0;
@@ -1000,7 +1006,7 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 	const ClothSample start = sim.sample();
 	std::vector<double> stepMs, collisionMs, skinMs, writeMs;
 	std::vector<double> colliderCpuMs; // the ellipsoid collider alone, thread CPU (robust on a loaded machine)
-	long long boneFieldNodes = 0, boneFieldFallbacks = 0;
+	long long boneFieldNodes = 0, boneFieldFallbacks = 0, skinMeshNodes = 0;
 	stepMs.reserve(std::size_t(steps));
 	collisionMs.reserve(std::size_t(steps));
 	SampleExtremes extremes;
@@ -1015,6 +1021,7 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 		colliderCpuMs.push_back(st.colliderCpuSeconds * 1e3);
 		boneFieldNodes += st.boneFieldNodes;
 		boneFieldFallbacks += st.boneFieldFallbacks;
+		skinMeshNodes += st.skinMeshNodes;
 		if (k % sim.scene().sampleEvery == 0 || k == steps)
 		{
 			last = sim.sample();
@@ -1057,7 +1064,8 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 		j["body_skin_ms_per_step_median"] = steps > 0 ? median(skinMs) : 0.0;
 		j["body_write_ms_per_step_median"] = steps > 0 ? median(writeMs) : 0.0;
 		if (sim.ellipsoidCollider() && sim.ellipsoidCollider()->getActiveSkinField())
-			j["bone_field"] = boneFieldJson(*sim.ellipsoidCollider(), d->body(), boneFieldNodes, boneFieldFallbacks);
+			j["bone_field"] = boneFieldJson(*sim.ellipsoidCollider(), d->body(), boneFieldNodes, boneFieldFallbacks,
+											skinMeshNodes);
 	}
 	return j;
 }

@@ -47,6 +47,8 @@ struct btEllipsoidClothStats
 	int m_boneFieldFallbacks; ///< tested nodes the union response decided instead (a joint: a candidate refitted or
 							  ///< of a bone moving differently, near in the current or the bind pose); where:
 							  ///< btEllipsoidClothCollider::getBoneFieldFallbacks
+	int m_skinMeshNodes;      ///< of those, the nodes decided on the skinned mesh of the instant (the compound's
+							  ///< btSkinMesh); the union decided the others
 
 	btEllipsoidClothStats() { reset(); }
 	void reset();

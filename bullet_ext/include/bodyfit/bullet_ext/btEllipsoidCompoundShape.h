@@ -16,6 +16,7 @@ and btEllipsoidWorldCache: the same ellipsoids in world space for one body pose,
 
 #include "bodyfit/bullet_ext/btEllipsoidShape.h"
 #include "bodyfit/bullet_ext/btSkinDistanceField.h"
+#include "bodyfit/bullet_ext/btSkinMesh.h"
 
 #if defined(__SSE__) && !defined(BT_USE_DOUBLE_PRECISION)
 #include <xmmintrin.h>
@@ -79,6 +80,7 @@ protected:
 	bool m_ownsBindPose;
 	btAlignedObjectArray<int> m_frameBones;            ///< skinned body: per ellipsoid its bone, -1 not rigid
 	btAlignedObjectArray<btTransform> m_bindToCurrent; ///< per ellipsoid: bind body frame -> current body frame
+	const btSkinMesh* m_skinMesh; ///< skinned body: its skin of the instant in this compound's frame, or 0 (not owned)
 
 	void computeLocalData(int index);
 	/// The as-given geometry of ellipsoid `index` (basis and semi-axes sanitised as addEllipsoid does).
@@ -160,6 +162,11 @@ public:
 	/// True when setBoneFrames ran since the last change of the ellipsoid count or of the bind pose.
 	bool hasBoneFrames() const { return m_frameBones.size() == m_ellipsoids.size() && m_ellipsoids.size() > 0; }
 	int getFrameBone(int index) const { return m_frameBones[index]; }
+	/// A skinned body's skin of the current pose (and the previous one) in this compound's frame, written by the
+	/// skinning driver in the same update as the ellipsoids; the cloth collider's tight mode decides there the nodes
+	/// the bind field in a bone's frame cannot (btSkinMeshResponse.cpp). Not owned: it must outlive its use; 0 detaches.
+	void setSkinMesh(const btSkinMesh* mesh) { m_skinMesh = mesh; }
+	const btSkinMesh* getSkinMesh() const { return m_skinMesh; }
 	const btTransform& getBindToCurrent(int index) const { return m_bindToCurrent[index]; }
 
 	/// zeta of ellipsoid i at a compound-local point.

@@ -29,6 +29,7 @@ Eigen -> Bullet conversion lives here (the bridge is the only layer that sees bo
 #include <vector>
 
 class btEllipsoidCompoundShape;
+class btSkinMesh;
 class btBvhTriangleMeshShape;
 class btTriangleIndexVertexArray;
 
@@ -80,7 +81,8 @@ struct SkinnedDriverStats
 	long long updates = 0;
 	double bodySeconds = 0.0;     ///< poseBones + skinningMatrices + skinVertices + ellipsoid update
 	double compoundSeconds = 0.0; ///< writing the ellipsoids into the compound (setEllipsoid per ellipsoid)
-	double meshSeconds = 0.0;     ///< writing the vertices into the triangle mesh and refitting its tree
+	double meshSeconds = 0.0;     ///< writing the vertices into the triangle mesh and refitting its tree, and the
+								  ///< same for the compound's skin mesh (tight surface)
 	double lastBodySeconds = 0.0, lastCompoundSeconds = 0.0, lastMeshSeconds = 0.0; ///< of the last update
 };
 
@@ -93,12 +95,19 @@ public:
 	/// \throws InvalidInputError as SkinnedBody, or for a speed <= 0 / non-finite, or a start outside the clip.
 	btSkinnedBodyDriver(const Rig& rig, const BodyFit& fit, const SkinBinding& binding, const AnimationClip& clip,
 						const AnimationTiming& timing, const SkinnedBodyOptions& options = {});
+	~btSkinnedBodyDriver();
+	btSkinnedBodyDriver(const btSkinnedBodyDriver&) = delete;
+	btSkinnedBodyDriver& operator=(const btSkinnedBodyDriver&) = delete;
 
 	/// The compound whose ellipsoids are replaced at every update (child i = ellipsoid i of the fit); null: none.
 	/// When the compound has a bind pose (btEllipsoidCompoundShape::setBindPose: the tight skin surface of an
 	/// animated body), every update also writes its bone frames: per ellipsoid its dominant bone and that bone's
 	/// skinning motion when its skin moves with it: a rigid ellipsoid, or one whose bones all move like the dominant
 	/// one within frameTolerance() over its bind ellipsoid (-1 otherwise: a bending joint).
+	/// With a bind pose and a skin field (the tight surface) the driver also gives the compound the skinned mesh of
+	/// each pose (btEllipsoidCompoundShape::setSkinMesh: rig.bindMesh's triangles, owned by the driver, detached from
+	/// the compound by the next setCompound and the destructor, so the compound must outlive the driver or be
+	/// replaced first), written in the same update as the ellipsoids.
 	/// \throws InvalidInputError when its ellipsoid count differs from the fit's. Writes the current pose at once.
 	void setCompound(btEllipsoidCompoundShape* compound);
 	/// The triangle mesh (of rig.bindMesh) whose vertices are replaced at every update; null: none.
@@ -134,12 +143,15 @@ private:
 	/// Every bone with weight on ellipsoid j moves like `bone` within m_frameTolerance (see frameTolerance).
 	bool movesWithBone(int j, int bone, const std::vector<Eigen::Affine3d>& skinning) const;
 	void writeMesh();
+	/// The skinned vertices into the skin mesh (a new pose of it).
+	void writeSkinMesh();
 
 	const AnimationClip* m_clip;
 	AnimationTiming m_timing;
 	std::unique_ptr<SkinnedBody> m_body;
 	btEllipsoidCompoundShape* m_compound = nullptr;
 	btRefitTriangleMesh* m_mesh = nullptr;
+	std::unique_ptr<btSkinMesh> m_skinMesh; ///< given to m_compound when it has a bind pose and a skin field
 	double m_time = 0.0;
 	double m_clipTime = 0.0;
 	long long m_revision = 0;

@@ -93,6 +93,7 @@ struct StepStats
 	/// the bind-pose field in a bone's frame, and those the union response decided (joints).
 	long long boneFieldNodes = 0;
 	long long boneFieldFallbacks = 0;
+	long long skinMeshNodes = 0; ///< of the bone-field fallbacks, decided on the skinned mesh of the instant
 };
 
 /// Cloth-quality numbers at one instant (inside counts, depth, zeta, NaN nodes).

@@ -1,0 +1,86 @@
+/*
+bodyfit: Bullet extension for ellipsoid body colliders. The skin of a skinned body as a triangle mesh of the instant
+(bullet_ext/README.md, "Tight skin surface", animated bodies): the bind topology, the vertices of the current and the
+previous pose, an AABB tree built once on the bind pose and refitted per pose, and the exact closest point.
+*/
+
+#ifndef BT_SKIN_MESH_H
+#define BT_SKIN_MESH_H
+
+#include "LinearMath/btAlignedObjectArray.h"
+#include "LinearMath/btVector3.h"
+
+/// The closest point of a btSkinMesh to a query point.
+struct btSkinMeshPoint
+{
+	int m_triangle;      ///< -1: no triangle within the search radius
+	btScalar m_bary[3];  ///< barycentric coordinates of the closest point in its triangle
+	btVector3 m_point;   ///< the closest point, current pose
+	btScalar m_distance; ///< its distance to the query point
+};
+
+class btSkinMesh
+{
+public:
+	BT_DECLARE_ALIGNED_ALLOCATOR();
+
+	btSkinMesh();
+
+	/// Takes the topology (numTriangles x 3 vertex indices) and the bind vertices, and builds the tree on them.
+	/// The triangles' orientation is taken from the sign of the enclosed volume (outward normals either way).
+	/// \return false (*error set to a one-line reason, nothing changed) for no triangles or an index out of range.
+	bool setTopology(int numVertices, const int* triangles, int numTriangles, const btVector3* vertices,
+					 const char** error = 0);
+	/// Starts a new pose: the current vertices become the previous ones; write the new ones into the returned array
+	/// (getNumVertices() entries), then call endPose().
+	btVector3* beginPose();
+	/// Refits the tree; bumps the revision.
+	void endPose();
+
+	/// The closest point of the current pose to p if one lies within `radius` (else out.m_triangle = -1 and false).
+	/// Ties go to the lowest triangle index: the result depends on p and the pose only. `hint` (a triangle, e.g. the
+	/// last answer for a point that moved little; -1 none) only starts the search with its distance, so fewer boxes
+	/// are opened.
+	bool closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoint& out, int hint = -1) const;
+	/// The same barycentric point in the previous pose.
+	btVector3 previousPoint(const btSkinMeshPoint& point) const;
+	/// Unit outward normal of a triangle in the current pose ((0, 0, 0) for a degenerate one).
+	btVector3 getNormal(int triangle) const;
+
+	int getNumVertices() const { return m_poses[0].size(); }
+	int getNumTriangles() const { return m_triangles.size() / 3; }
+	/// Increases with every endPose() (and setTopology()).
+	int getRevision() const { return m_revision; }
+
+private:
+	struct Node
+	{
+		btVector3 m_min, m_max;
+		int m_right; ///< inner node: index of the right child (the left one follows the node); leaf: -1
+		int m_first, m_count; ///< leaf: its triangles m_order[first .. first + count)
+		int m_vertexFirst, m_vertexCount; ///< leaf: the distinct corners of its triangles, m_leafVertices[first ..)
+	};
+	btAlignedObjectArray<int> m_triangles;
+	btAlignedObjectArray<btVector3> m_poses[2]; ///< the current pose is m_poses[m_current], the previous the other
+	int m_current;
+	btAlignedObjectArray<int> m_order;
+	btAlignedObjectArray<int> m_leafVertices; ///< per leaf, its distinct corners (the refit reads only these)
+	btAlignedObjectArray<Node> m_nodes;
+	btScalar m_orientation; ///< +1, or -1 when the triangles wind inwards
+	int m_revision;
+
+	int build(int first, int count, const btAlignedObjectArray<btVector3>& centroids);
+	/// Takes triangle t as out's closest point when it is nearer than best2 (or as near, with a lower index).
+	void consider(const btVector3& p, int t, btScalar& best2, btSkinMeshPoint& out) const;
+	/// The leaves' corner lists (m_leafVertices), once after build().
+	void collectLeafVertices();
+	const btVector3& vertex(int t, int corner) const { return m_poses[m_current][m_triangles[3 * t + corner]]; }
+	void refit();
+};
+
+/// The closest point of triangle (a, b, c) to p, as barycentric coordinates (Voronoi regions of the corners, edges
+/// and face).
+void btClosestOnTriangle(const btVector3& p, const btVector3& a, const btVector3& b, const btVector3& c,
+						 btScalar bary[3]);
+
+#endif // BT_SKIN_MESH_H

@@ -1,0 +1,332 @@
+/*
+bodyfit: the skinned skin as a refitted triangle mesh. See btSkinMesh.h.
+*/
+
+#include "bodyfit/bullet_ext/btSkinMesh.h"
+
+namespace
+{
+/// Triangles per leaf of the tree.
+const int kLeafSize = 8;
+} // namespace
+
+void btClosestOnTriangle(const btVector3& p, const btVector3& a, const btVector3& b, const btVector3& c,
+						 btScalar bary[3])
+{
+	// The textbook region test: the projections of p on the edges decide which corner, edge or the face holds the
+	// closest point (Ericson, Real-Time Collision Detection, 5.1.5).
+	const btVector3 ab = b - a, ac = c - a, ap = p - a;
+	const btScalar d1 = ab.dot(ap), d2 = ac.dot(ap);
+	bary[0] = btScalar(1);
+	bary[1] = bary[2] = btScalar(0);
+	if (d1 <= btScalar(0) && d2 <= btScalar(0))
+		return; // corner a
+	const btVector3 bp = p - b;
+	const btScalar d3 = ab.dot(bp), d4 = ac.dot(bp);
+	if (d3 >= btScalar(0) && d4 <= d3)
+	{
+		bary[0] = btScalar(0);
+		bary[1] = btScalar(1);
+		return; // corner b
+	}
+	const btScalar vc = d1 * d4 - d3 * d2;
+	if (vc <= btScalar(0) && d1 >= btScalar(0) && d3 <= btScalar(0))
+	{
+		const btScalar v = d1 / (d1 - d3);
+		bary[0] = btScalar(1) - v;
+		bary[1] = v;
+		return; // edge ab
+	}
+	const btVector3 cp = p - c;
+	const btScalar d5 = ab.dot(cp), d6 = ac.dot(cp);
+	if (d6 >= btScalar(0) && d5 <= d6)
+	{
+		bary[0] = btScalar(0);
+		bary[2] = btScalar(1);
+		return; // corner c
+	}
+	const btScalar vb = d5 * d2 - d1 * d6;
+	if (vb <= btScalar(0) && d2 >= btScalar(0) && d6 <= btScalar(0))
+	{
+		const btScalar w = d2 / (d2 - d6);
+		bary[0] = btScalar(1) - w;
+		bary[2] = w;
+		return; // edge ac
+	}
+	const btScalar va = d3 * d6 - d5 * d4;
+	if (va <= btScalar(0) && d4 - d3 >= btScalar(0) && d5 - d6 >= btScalar(0))
+	{
+		const btScalar w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+		bary[0] = btScalar(0);
+		bary[1] = btScalar(1) - w;
+		bary[2] = w;
+		return; // edge bc
+	}
+	const btScalar sum = va + vb + vc;
+	if (!(sum > btScalar(0)))
+		return; // degenerate triangle: corner a
+	bary[1] = vb / sum;
+	bary[2] = vc / sum;
+	bary[0] = btScalar(1) - bary[1] - bary[2];
+}
+
+btSkinMesh::btSkinMesh() : m_current(0), m_orientation(1), m_revision(0) {}
+
+bool btSkinMesh::setTopology(int numVertices, const int* triangles, int numTriangles, const btVector3* vertices,
+							 const char** error)
+{
+	const char* why = 0;
+	if (numTriangles <= 0 || numVertices <= 0 || !triangles || !vertices)
+		why = "btSkinMesh: no triangles or no vertices";
+	for (int i = 0; !why && i < numTriangles * 3; ++i)
+		if (triangles[i] < 0 || triangles[i] >= numVertices)
+			why = "btSkinMesh: a triangle index is outside the vertices";
+	if (why)
+	{
+		if (error)
+			*error = why;
+		return false;
+	}
+	m_triangles.resize(numTriangles * 3);
+	for (int i = 0; i < numTriangles * 3; ++i)
+		m_triangles[i] = triangles[i];
+	m_current = 0;
+	m_poses[0].resize(numVertices);
+	for (int i = 0; i < numVertices; ++i)
+		m_poses[0][i] = vertices[i];
+	m_poses[1].copyFromArray(m_poses[0]);
+	// Orientation: the enclosed volume (sum of signed tetrahedra from the origin) is positive for outward winding.
+	btScalar volume = btScalar(0);
+	btAlignedObjectArray<btVector3> centroids;
+	centroids.resize(numTriangles);
+	for (int t = 0; t < numTriangles; ++t)
+	{
+		const btVector3& a = vertex(t, 0);
+		const btVector3& b = vertex(t, 1);
+		const btVector3& c = vertex(t, 2);
+		volume += a.dot(b.cross(c));
+		centroids[t] = (a + b + c) / btScalar(3);
+	}
+	m_orientation = volume < btScalar(0) ? btScalar(-1) : btScalar(1);
+	m_order.resize(numTriangles);
+	for (int t = 0; t < numTriangles; ++t)
+		m_order[t] = t;
+	m_nodes.resize(0);
+	build(0, numTriangles, centroids);
+	collectLeafVertices();
+	refit();
+	++m_revision;
+	return true;
+}
+
+int btSkinMesh::build(int first, int count, const btAlignedObjectArray<btVector3>& centroids)
+{
+	// Preorder: a node precedes its children, so refit() can run backwards. Median split of the centroids along the
+	// box's longest axis (Hoare quickselect; any split would do, the median keeps the tree balanced).
+	const int index = m_nodes.size();
+	m_nodes.expand();
+	m_nodes[index].m_right = -1;
+	m_nodes[index].m_first = first;
+	m_nodes[index].m_count = count;
+	m_nodes[index].m_vertexFirst = m_nodes[index].m_vertexCount = 0;
+	if (count <= kLeafSize)
+		return index;
+	btVector3 lo = centroids[m_order[first]], hi = lo;
+	for (int i = first + 1; i < first + count; ++i)
+	{
+		lo.setMin(centroids[m_order[i]]);
+		hi.setMax(centroids[m_order[i]]);
+	}
+	const int axis = (hi - lo).maxAxis();
+	const int mid = first + count / 2;
+	int l = first, r = first + count - 1;
+	while (l < r)
+	{
+		const btScalar pivot = centroids[m_order[(l + r) / 2]][axis];
+		int i = l, j = r;
+		while (i <= j)
+		{
+			while (centroids[m_order[i]][axis] < pivot)
+				++i;
+			while (centroids[m_order[j]][axis] > pivot)
+				--j;
+			if (i <= j)
+			{
+				m_order.swap(i, j);
+				++i;
+				--j;
+			}
+		}
+		if (mid <= j)
+			r = j;
+		else if (mid >= i)
+			l = i;
+		else
+			break;
+	}
+	build(first, mid - first, centroids);
+	const int right = build(mid, first + count - mid, centroids);
+	m_nodes[index].m_right = right;
+	return index;
+}
+
+void btSkinMesh::collectLeafVertices()
+{
+	m_leafVertices.resize(0);
+	for (int i = 0; i < m_nodes.size(); ++i)
+	{
+		Node& node = m_nodes[i];
+		node.m_vertexFirst = m_leafVertices.size();
+		node.m_vertexCount = 0;
+		if (node.m_right >= 0)
+			continue;
+		for (int k = 0; k < node.m_count * 3; ++k)
+		{
+			const int v = m_triangles[3 * m_order[node.m_first + k / 3] + k % 3];
+			bool seen = false; // (a leaf has at most 3 kLeafSize corners: a linear scan)
+			for (int j = node.m_vertexFirst; j < m_leafVertices.size() && !seen; ++j)
+				seen = m_leafVertices[j] == v;
+			if (!seen)
+				m_leafVertices.push_back(v);
+		}
+		node.m_vertexCount = m_leafVertices.size() - node.m_vertexFirst;
+	}
+}
+
+btVector3 btSkinMesh::getNormal(int t) const
+{
+	const btVector3& a = vertex(t, 0);
+	const btVector3 cross = (vertex(t, 1) - a).cross(vertex(t, 2) - a);
+	const btScalar len = cross.length();
+	return len > btScalar(0) ? cross * (m_orientation / len) : btVector3(0, 0, 0);
+}
+
+void btSkinMesh::refit()
+{
+	for (int i = m_nodes.size() - 1; i >= 0; --i)
+	{
+		Node& node = m_nodes[i];
+		if (node.m_right < 0)
+		{
+			const btAlignedObjectArray<btVector3>& pose = m_poses[m_current];
+			const int* corner = &m_leafVertices[node.m_vertexFirst];
+			node.m_min = node.m_max = pose[corner[0]];
+			for (int k = 1; k < node.m_vertexCount; ++k)
+			{
+				node.m_min.setMin(pose[corner[k]]);
+				node.m_max.setMax(pose[corner[k]]);
+			}
+		}
+		else
+		{
+			const Node& left = m_nodes[i + 1];
+			const Node& right = m_nodes[node.m_right];
+			node.m_min = left.m_min;
+			node.m_max = left.m_max;
+			node.m_min.setMin(right.m_min);
+			node.m_max.setMax(right.m_max);
+		}
+	}
+}
+
+btVector3* btSkinMesh::beginPose()
+{
+	m_current = 1 - m_current;
+	return m_poses[m_current].size() > 0 ? &m_poses[m_current][0] : 0;
+}
+
+void btSkinMesh::endPose()
+{
+	refit();
+	++m_revision;
+}
+
+
+namespace
+{
+btScalar boxDistance2(const btVector3& p, const btVector3& lo, const btVector3& hi)
+{
+	btScalar d2 = btScalar(0);
+	for (int k = 0; k < 3; ++k)
+	{
+		const btScalar d = p[k] < lo[k] ? lo[k] - p[k] : (p[k] > hi[k] ? p[k] - hi[k] : btScalar(0));
+		d2 += d * d;
+	}
+	return d2;
+}
+} // namespace
+
+void btSkinMesh::consider(const btVector3& p, int t, btScalar& best2, btSkinMeshPoint& out) const
+{
+	const btVector3& a = vertex(t, 0);
+	const btVector3& b = vertex(t, 1);
+	const btVector3& c = vertex(t, 2);
+	btVector3 lo = a, hi = a;
+	lo.setMin(b);
+	lo.setMin(c);
+	hi.setMax(b);
+	hi.setMax(c);
+	if (boxDistance2(p, lo, hi) > best2)
+		return; // (the box holds the triangle: it cannot be nearer)
+	btScalar bary[3];
+	btClosestOnTriangle(p, a, b, c, bary);
+	const btVector3 q = a * bary[0] + b * bary[1] + c * bary[2];
+	const btScalar d2 = (p - q).length2();
+	if (d2 < best2 || (d2 == best2 && (out.m_triangle < 0 || t < out.m_triangle)))
+	{
+		best2 = d2;
+		out.m_triangle = t;
+		out.m_bary[0] = bary[0];
+		out.m_bary[1] = bary[1];
+		out.m_bary[2] = bary[2];
+		out.m_point = q;
+	}
+}
+
+bool btSkinMesh::closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoint& out, int hint) const
+{
+	out.m_triangle = -1;
+	out.m_distance = radius;
+	if (m_nodes.size() == 0)
+		return false;
+	btScalar best2 = radius * radius;
+	// The hint bounds the search; every box within that bound is still opened (the pruning below is strict), so
+	// the answer, ties included, is the same as without it.
+	if (hint >= 0 && hint < getNumTriangles())
+		consider(p, hint, best2, out);
+	int stack[64];
+	int top = 0;
+	stack[top++] = 0;
+	while (top > 0)
+	{
+		const Node& node = m_nodes[stack[--top]];
+		if (boxDistance2(p, node.m_min, node.m_max) > best2)
+			continue;
+		if (node.m_right >= 0)
+		{
+			// Nearer child last (popped first); the depth is about log2(triangles / 8), far below the stack size.
+			const int left = int(&node - &m_nodes[0]) + 1;
+			const btScalar dl = boxDistance2(p, m_nodes[left].m_min, m_nodes[left].m_max);
+			const btScalar dr = boxDistance2(p, m_nodes[node.m_right].m_min, m_nodes[node.m_right].m_max);
+			if (top + 2 > 64)
+				continue; // (unreachable for a median-split tree of < 2^60 triangles)
+			stack[top++] = dl <= dr ? node.m_right : left;
+			stack[top++] = dl <= dr ? left : node.m_right;
+			continue;
+		}
+		for (int k = 0; k < node.m_count; ++k)
+			consider(p, m_order[node.m_first + k], best2, out);
+	}
+	if (out.m_triangle < 0)
+		return false;
+	out.m_distance = btSqrt(best2);
+	return true;
+}
+
+btVector3 btSkinMesh::previousPoint(const btSkinMeshPoint& point) const
+{
+	const int t = point.m_triangle;
+	const btAlignedObjectArray<btVector3>& previous = m_poses[1 - m_current];
+	return previous[m_triangles[3 * t]] * point.m_bary[0] + previous[m_triangles[3 * t + 1]] * point.m_bary[1] +
+		   previous[m_triangles[3 * t + 2]] * point.m_bary[2];
+}
