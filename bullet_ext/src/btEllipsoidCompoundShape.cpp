@@ -437,7 +437,8 @@ btEllipsoidWorldCache::btEllipsoidWorldCache()
 	  m_stampCounter(0),
 	  m_gridMargin(btScalar(0)),
 	  m_gridBuilds(0),
-	  m_updatesSinceBuild(0)
+	  m_updatesSinceBuild(0),
+	  m_listsHoldPrevious(false)
 {
 	m_transform.setIdentity();
 	m_inverse.setIdentity();
@@ -506,22 +507,42 @@ bool btEllipsoidWorldCache::update(const btEllipsoidCompoundShape* shape, const 
 		m_aabbMax.setValue(0, 0, 0);
 	}
 	// The grid lives in the body frame: a moving body does not rebuild it, nor does an animated compound whose
-	// ellipsoids stay within the lists' margin.
+	// ellipsoids stay within the lists' margin (or, a few, are box-tested since they left it).
+	m_listsHoldPrevious = false;
 	if (!sameShape && !(animated && gridCovers()))
 		buildGrid(animated);
 	else if (animated)
+	{
 		++m_updatesSinceBuild;
+		// The lists held every ellipsoid's previous pose at the last update (within its margin there, or box-tested),
+		// and nothing was taken from them since.
+		m_listsHoldPrevious = true;
+	}
 	return true;
 }
 
-bool btEllipsoidWorldCache::gridCovers() const
+bool btEllipsoidWorldCache::gridCovers()
 {
 	const int n = m_shape->getNumEllipsoids();
-	if (!(m_gridMargin > btScalar(0)) || m_gridCenters.size() != n || m_gridMargins.size() != n)
+	if (!(m_gridMargin > btScalar(0)) || m_gridCenters.size() != n || m_gridMargins.size() != n ||
+		m_isBoxTested.size() != n)
 		return false;
+	// A fast part (a foot in its swing) leaves its margin long before the rest: it joins the box-tested set, a box
+	// test per query, instead of a build of every list (about 3.7 M instructions for 85 ellipsoids).
+	const int before = m_boxTested.size();
 	for (int i = 0; i < n; ++i)
-		if (!(driftSinceBuild(i) <= m_gridMargins[i]))
-			return false;
+		if (!m_isBoxTested[i] && !(driftSinceBuild(i) <= m_gridMargins[i]))
+		{
+			if (m_boxTested.size() == kMaxBoxTested)
+			{
+				for (int k = before; k < m_boxTested.size(); ++k)
+					m_isBoxTested[m_boxTested[k]] = 0;
+				m_boxTested.resize(before);
+				return false;
+			}
+			m_boxTested.push_back(i);
+			m_isBoxTested[i] = 1;
+		}
 	return true;
 }
 
@@ -569,6 +590,10 @@ void btEllipsoidWorldCache::buildGrid(bool animated)
 		m_stamp[i] = 0;
 	m_stampCounter = 0;
 	++m_gridBuilds;
+	m_boxTested.resize(0);
+	m_isBoxTested.resize(n);
+	for (int i = 0; i < n; ++i)
+		m_isBoxTested[i] = 0;
 	if (n == 0)
 	{
 		m_dims[0] = m_dims[1] = m_dims[2] = 0;
@@ -806,6 +831,17 @@ void btEllipsoidWorldCache::query(const btVector3& aabbMin, const btVector3& aab
 					out.push_back(i);
 				}
 			}
+	for (int b = 0; b < m_boxTested.size(); ++b)
+	{
+		const int i = m_boxTested[b];
+		const Entry& w = m_entries[i];
+		if (m_stamp[i] == m_stampCounter || aabbMin.x() > w.m_aabbMax.x() || aabbMax.x() < w.m_aabbMin.x() ||
+			aabbMin.y() > w.m_aabbMax.y() || aabbMax.y() < w.m_aabbMin.y() || aabbMin.z() > w.m_aabbMax.z() ||
+			aabbMax.z() < w.m_aabbMin.z())
+			continue;
+		m_stamp[i] = m_stampCounter;
+		out.push_back(i);
+	}
 }
 
 btScalar btEllipsoidWorldCache::minZeta(const btVector3& worldPoint, int* which) const
@@ -838,6 +874,8 @@ btEllipsoidWorldCache::PathQuery::PathQuery(const btEllipsoidWorldCache& cache, 
 	  m_cellItems(cache.m_cellItems.size() ? &cache.m_cellItems[0] : 0),
 	  m_wideStart(cache.m_wideStart.size() ? &cache.m_wideStart[0] : 0),
 	  m_wideItems(cache.m_wideItems.size() ? &cache.m_wideItems[0] : 0),
+	  m_boxTested(cache.m_boxTested.size() ? &cache.m_boxTested[0] : 0),
+	  m_numBoxTested(cache.m_boxTested.size()),
 	  m_unionMin(cache.m_aabbMin),
 	  m_unionMax(cache.m_aabbMax),
 	  m_invCell(cache.m_invCell),
@@ -854,6 +892,7 @@ btEllipsoidWorldCache::PathQuery::PathQuery(const btEllipsoidWorldCache& cache, 
 	const btScalar invCell = cache.m_invCell;
 	m_radiusBox.setValue(radius, radius, radius);
 	m_radiusCells = m_radiusBox * invCell;
+	setBoxTestedBounds();
 	const btTransform& toLocal = cache.getInverseTransform();
 	// World -> grid units in one affine map: f = (toLocal * p - gridOrigin) / cell.
 	m_toGrid = btTransform(toLocal.getBasis().scaled(btVector3(invCell, invCell, invCell)),
@@ -883,6 +922,20 @@ btEllipsoidWorldCache::PathQuery::PathQuery(const btEllipsoidWorldCache& cache, 
 	{
 		m_unionMin = unionMin;
 		m_unionMax = unionMax;
+	}
+	setBoxTestedBounds();
+}
+
+void btEllipsoidWorldCache::PathQuery::setBoxTestedBounds()
+{
+	// One test of the path box against the box around the box-tested ellipsoids skips them all for most paths (the
+	// fast parts that leave their margins are few and close together: a foot and its shin).
+	m_boxTestedMin.setValue(SIMD_INFINITY, SIMD_INFINITY, SIMD_INFINITY);
+	m_boxTestedMax = -m_boxTestedMin;
+	for (int b = 0; b < m_numBoxTested; ++b)
+	{
+		m_boxTestedMin.setMin(m_boxes[2 * m_boxTested[b]]);
+		m_boxTestedMax.setMax(m_boxes[2 * m_boxTested[b] + 1]);
 	}
 }
 
@@ -933,5 +986,27 @@ int btEllipsoidWorldCache::PathQuery::walkCells(const btVector3& q, const btVect
 						out[nc++] = k;
 				}
 			}
+	return m_numBoxTested > 0 && boxesOverlap(boxMin, boxMax, m_boxTestedMin, m_boxTestedMax)
+			   ? addBoxTested(boxMin, boxMax, out, nc)
+			   : nc;
+}
+
+int btEllipsoidWorldCache::PathQuery::addBoxTested(const btVector3& boxMin, const btVector3& boxMax, int* out,
+												   int nc) const
+{
+	// Their lists hold them at their poses at the build, so one may be listed already: each is added once (out has
+	// room for every entry, and holds each at most once).
+	const int listed = nc;
+	for (int b = 0; b < m_numBoxTested; ++b)
+	{
+		const int k = m_boxTested[b];
+		if (!boxesOverlap(boxMin, boxMax, m_boxes[2 * k], m_boxes[2 * k + 1]))
+			continue;
+		int m = 0;
+		while (m < listed && out[m] != k)
+			++m;
+		if (m == listed)
+			out[nc++] = k;
+	}
 	return nc;
 }
