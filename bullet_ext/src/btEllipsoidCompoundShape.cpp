@@ -703,6 +703,24 @@ struct GrownCellTest
 		return x >= m_lo[0] && x <= m_hi[0] && y >= m_lo[1] && y <= m_hi[1] && z >= m_lo[2] && z <= m_hi[2];
 	}
 
+	/// The cells [x0, x1] of row (y, z) in range whose grown cells the ellipsoid may meet; false when none. Each test
+	/// of meets() is a convex set of centres (a box, two ellipsoids), so the cells that pass along a row are an
+	/// interval: it is found from both ends, and the cells between are listed without a test (where rounding would
+	/// fail one inside, listing it anyway only lengthens the list). A build tests about half the cells it did.
+	bool rowSpan(int y, int z, btScalar cell, int& x0, int& x1) const
+	{
+		const btScalar cy = (btScalar(y) + btScalar(0.5)) * cell, cz = (btScalar(z) + btScalar(0.5)) * cell;
+		x0 = m_lo[0];
+		while (x0 <= m_hi[0] && !meets(btVector3((btScalar(x0) + btScalar(0.5)) * cell, cy, cz)))
+			++x0;
+		if (x0 > m_hi[0])
+			return false;
+		x1 = m_hi[0];
+		while (x1 > x0 && !meets(btVector3((btScalar(x1) + btScalar(0.5)) * cell, cy, cz)))
+			--x1;
+		return true;
+	}
+
 	/// The ellipsoid may meet the grown cell centred at `centre` (relative to the grid origin).
 	bool meets(const btVector3& centre) const
 	{
@@ -754,22 +772,22 @@ void btEllipsoidWorldCache::buildLists()
 		const GrownCellTest wide(e, cell * (btScalar(0.5) + m_wideDilation) + margin, cell, m_gridOrigin, m_dims);
 		for (int z = wide.m_lo[2]; z <= wide.m_hi[2]; ++z)
 			for (int y = wide.m_lo[1]; y <= wide.m_hi[1]; ++y)
-				for (int x = wide.m_lo[0]; x <= wide.m_hi[0]; ++x)
-				{
-					const btVector3 centre = btVector3(btScalar(x) + btScalar(0.5), btScalar(y) + btScalar(0.5),
-													   btScalar(z) + btScalar(0.5)) * cell;
-					const int c = (z * m_dims[1] + y) * m_dims[0] + x;
-					if (wide.meets(centre))
+			{
+				const int row = (z * m_dims[1] + y) * m_dims[0];
+				int x0, x1;
+				if (wide.rowSpan(y, z, cell, x0, x1))
+					for (int x = x0; x <= x1; ++x)
 					{
-						m_widePairs.push_back(c);
+						m_widePairs.push_back(row + x);
 						m_widePairs.push_back(i);
 					}
-					if (narrow.inRange(x, y, z) && narrow.meets(centre))
+				if (narrow.inRange(narrow.m_lo[0], y, z) && narrow.rowSpan(y, z, cell, x0, x1))
+					for (int x = x0; x <= x1; ++x)
 					{
-						m_cellPairs.push_back(c);
+						m_cellPairs.push_back(row + x);
 						m_cellPairs.push_back(i);
 					}
-				}
+			}
 	}
 	listsFromPairs(m_cellPairs, cells, m_cellStart, m_cellItems, m_pairCursor);
 	listsFromPairs(m_widePairs, cells, m_wideStart, m_wideItems, m_pairCursor);
