@@ -428,10 +428,20 @@ bool blocksRay(const btEllipsoidWorldCache::Entry& e, const btVector3& p, const 
 
 bool btEllipsoidUnionPushOut::rayEscapes(const btVector3& p, const btVector3& dir) const
 {
+	// (Cheap skip, not needed for soundness, as in axisRayEscapes: an ellipsoid lies in its world box, and a box that
+	// lies behind p along an axis the ray moves forward on, or beside p along an axis it keeps, cannot meet the ray.
+	// Most of the 26 lattice rays keep one or two coordinates.)
 	const btEllipsoidWorldCache& cache = *m_cache;
 	for (int k = 0; k < cache.size(); ++k)
-		if (blocksRay(cache[k], p, cache[k].m_whiten * dir))
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[k];
+		bool behind = false;
+		for (int a = 0; a < 3; ++a)
+			behind = behind || (dir[a] >= btScalar(0) && e.m_aabbMax[a] < p[a]) ||
+					 (dir[a] <= btScalar(0) && e.m_aabbMin[a] > p[a]);
+		if (!behind && blocksRay(e, p, e.m_whiten * dir))
 			return false;
+	}
 	return true;
 }
 
