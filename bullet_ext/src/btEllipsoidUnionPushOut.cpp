@@ -272,9 +272,26 @@ void btEllipsoidUnionPushOut::collectRayIntervals(const btVector3& origin, const
 	const btEllipsoidWorldCache& cache = *m_cache;
 	m_intervals.resize(0);
 	m_intervalOwner.resize(0);
+	// (Cheap skip: an ellipsoid lies in its world box. Along an axis the ray moves forward on, a box whose far side
+	// lies more than the skin behind the origin holds only points of the line at s < -skin, whose chords are dropped
+	// below; along an axis the ray keeps, a box beside the origin misses the line. A few ulps of the coordinates
+	// keep rounding out of it; realiseExit checks the point it places on every ellipsoid near it anyway.)
+	const btScalar tolerance = btScalar(16) * SIMD_EPSILON * coordinateScale(origin);
+	btVector3 lo, hi;
+	for (int a = 0; a < 3; ++a)
+	{
+		const btScalar reach = skin * btFabs(dir[a]) + tolerance;
+		lo[a] = dir[a] > btScalar(0) ? origin[a] - reach : -SIMD_INFINITY; // the far side must reach past lo
+		hi[a] = dir[a] < btScalar(0) ? origin[a] + reach : SIMD_INFINITY;  // the near side must stay below hi
+		if (dir[a] == btScalar(0))
+			lo[a] = origin[a] - tolerance, hi[a] = origin[a] + tolerance;
+	}
 	for (int k = 0; k < cache.size(); ++k)
 	{
 		const btEllipsoidWorldCache::Entry& e = cache[k];
+		if (e.m_aabbMax.x() < lo.x() || e.m_aabbMax.y() < lo.y() || e.m_aabbMax.z() < lo.z() ||
+			e.m_aabbMin.x() > hi.x() || e.m_aabbMin.y() > hi.y() || e.m_aabbMin.z() > hi.z())
+			continue;
 		const btUnitBallQuadratic quadratic =
 			btUnitBallQuadratic::ofLine(e.m_whiten * (origin - e.m_center), e.m_whiten * dir);
 		if (!(quadratic.m_a > btScalar(0)))
