@@ -499,36 +499,39 @@ void btEllipsoidUnionPushOut::buildAxisBins(int axis)
 		bins.m_dims[i] = btMax(1, btMin(int(kEscapeBinsLongestSide), int(extent[i] * bins.m_invBin) + 1));
 	}
 	const int nbins = bins.m_dims[0] * bins.m_dims[1];
-	bins.m_start.resize(nbins + 1);
-	for (int b = 0; b <= nbins; ++b)
-		bins.m_start[b] = 0;
-	for (int pass = 0; pass < 2; ++pass)
+	const int n = cache.size();
+	// Each ellipsoid's range of bins once (four ints: i0, i1, j0, j1), then count, prefix sums and fill.
+	m_binRanges.resize(4 * n);
+	int* range = n > 0 ? &m_binRanges[0] : 0;
+	for (int k = 0; k < n; ++k)
 	{
-		for (int k = 0; k < cache.size(); ++k)
-		{
-			const btEllipsoidWorldCache::Entry& e = cache[k];
-			const int i0 = bins.binCoord(e.m_aabbMin[bins.m_axes[0]], 0), i1 = bins.binCoord(e.m_aabbMax[bins.m_axes[0]], 0);
-			const int j0 = bins.binCoord(e.m_aabbMin[bins.m_axes[1]], 1), j1 = bins.binCoord(e.m_aabbMax[bins.m_axes[1]], 1);
-			for (int j = j0; j <= j1; ++j)
-				for (int i = i0; i <= i1; ++i)
-				{
-					const int b = j * bins.m_dims[0] + i;
-					if (pass == 0)
-						++bins.m_start[b + 1];
-					else
-						bins.m_items[m_binFill[b]++] = k;
-				}
-		}
-		if (pass == 0)
-		{
-			for (int b = 0; b < nbins; ++b)
-				bins.m_start[b + 1] += bins.m_start[b];
-			bins.m_items.resize(bins.m_start[nbins]);
-			m_binFill.resize(nbins);
-			for (int b = 0; b < nbins; ++b)
-				m_binFill[b] = bins.m_start[b];
-		}
+		const btEllipsoidWorldCache::Entry& e = cache[k];
+		range[4 * k] = bins.binCoord(e.m_aabbMin[bins.m_axes[0]], 0);
+		range[4 * k + 1] = bins.binCoord(e.m_aabbMax[bins.m_axes[0]], 0);
+		range[4 * k + 2] = bins.binCoord(e.m_aabbMin[bins.m_axes[1]], 1);
+		range[4 * k + 3] = bins.binCoord(e.m_aabbMax[bins.m_axes[1]], 1);
 	}
+	bins.m_start.resize(nbins + 1);
+	int* start = &bins.m_start[0];
+	for (int b = 0; b <= nbins; ++b)
+		start[b] = 0;
+	const int dimX = bins.m_dims[0];
+	for (int k = 0; k < n; ++k)
+		for (int j = range[4 * k + 2]; j <= range[4 * k + 3]; ++j)
+			for (int i = range[4 * k]; i <= range[4 * k + 1]; ++i)
+				++start[j * dimX + i + 1];
+	for (int b = 0; b < nbins; ++b)
+		start[b + 1] += start[b];
+	bins.m_items.resizeNoInitialize(start[nbins]);
+	m_binFill.resizeNoInitialize(nbins);
+	int* fill = &m_binFill[0];
+	for (int b = 0; b < nbins; ++b)
+		fill[b] = start[b];
+	int* items = start[nbins] > 0 ? &bins.m_items[0] : 0;
+	for (int k = 0; k < n; ++k)
+		for (int j = range[4 * k + 2]; j <= range[4 * k + 3]; ++j)
+			for (int i = range[4 * k]; i <= range[4 * k + 1]; ++i)
+				items[fill[j * dimX + i]++] = k;
 }
 
 int btEllipsoidUnionPushOut::axisRaysEscape(int axis, const btVector3& p) const
