@@ -355,11 +355,12 @@ void btEllipsoidClothColliderCore::updateWorldCache(bool continuing)
 				 m_current.getRevision() != m_compound->getAnalyticRevision();
 	if (m_sweeping)
 		m_sweep.capture(m_current);
-	const int builds = m_current.getGridBuilds();
 	m_current.update(m_compound, m_currentPose);
 	if (m_sweeping)
 		m_sweeping = m_sweep.prepare(m_current);
-	m_sweepOnGrid = m_sweeping && !m_moving && m_current.getGridBuilds() == builds &&
+	// The static grid's lists serve the sweep when they hold every ellipsoid at both poses of the substep (kept, or
+	// only the ellipsoids that left their margins relisted, each margin holding its previous pose as well).
+	m_sweepOnGrid = m_sweeping && !m_moving && m_current.listsHoldPreviousPoses() &&
 					m_current.getGridMargin() > btScalar(0) && !m_sweep.hasUnbounded();
 	m_sweepMaxPath = m_current.getCellSize();
 	// A field is baked for one shape of the body: while the ellipsoids move by themselves it no longer describes the

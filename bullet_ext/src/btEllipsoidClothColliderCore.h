@@ -125,8 +125,8 @@ private:
 	bool m_sweeping;   ///< the ellipsoids moved by themselves since the previous substep: per-ellipsoid motion
 	btEllipsoidSweep m_sweep; ///< their motion over this substep (valid while m_sweeping)
 	/// The sweep may use the static grid's lists: the body did not move rigidly and the grid, built with a margin, was
-	/// not rebuilt this substep, so it held every ellipsoid at its previous and current pose, hence (the drift from
-	/// the build pose is convex along the interpolation) at every pose in between.
+	/// not rebuilt this substep, so it held every ellipsoid at its previous and current pose (within its margin, or
+	/// box-tested), hence (the drift from the build pose is convex along the interpolation) at every pose in between.
 	bool m_sweepOnGrid;
 	btScalar m_sweepMaxPath; ///< paths up to this long (a grid cell) take the static grid; longer ones the swept grid
 	btRigidBody* m_dynamicBody; ///< the body when it takes the reaction impulses this substep (else 0)

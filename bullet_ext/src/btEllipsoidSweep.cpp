@@ -144,6 +144,24 @@ bool btEllipsoidSweep::prepare(const btEllipsoidWorldCache& current)
 	return true;
 }
 
+bool btEllipsoidSweep::keepsFrame(const btMatrix3x3& m)
+{
+	// The search below keeps S = I (the first of the 24, kept on ties) whenever every other trace is smaller. Each
+	// term of trace(S^T m) is sign_k m[row_k][k] <= |m[row_k][k]|, so when every diagonal element exceeds the others
+	// of its column by delta_k > 0, trace(m) - trace(S^T m) >= min_k delta_k for every S != I. The traces are three-
+	// term sums rounded to btScalar, each within 2 ulps of trace(m) (>= every |term|): a gap above 8 epsilons of
+	// trace(m) survives the rounding, so the search would give S = I bit for bit. The common case (an ellipsoid that
+	// turned by much less than 45 degrees in a substep, handed over in the same frame) skips the 24 traces.
+	const btScalar trace = m[0][0] + m[1][1] + m[2][2];
+	btScalar gap = SIMD_INFINITY;
+	for (int k = 0; k < 3; ++k)
+	{
+		const btScalar other = btMax(btFabs(m[(k + 1) % 3][k]), btFabs(m[(k + 2) % 3][k]));
+		gap = btMin(gap, m[k][k] - other);
+	}
+	return gap > btScalar(8) * SIMD_EPSILON * trace; // (false for NaN)
+}
+
 void btEllipsoidSweep::alignPreviousFrame(const btEllipsoidWorldCache::Entry& now, int j)
 {
 	// The ball is symmetric, so an ellipsoid has many frames: U and U S for every orthogonal S. A driver that builds
@@ -154,6 +172,8 @@ void btEllipsoidSweep::alignPreviousFrame(const btEllipsoidWorldCache::Entry& no
 	// that turns the ellipsoid by less than 45 degrees in a substep.
 	btMatrix3x3& u0 = m_previousUnwhiten[j];
 	const btMatrix3x3 m = u0.transpose() * now.m_unwhiten;
+	if (keepsFrame(m))
+		return;
 	const btAxisSymmetry* sym = axisSymmetries();
 	int best = 0;
 	btScalar bestTrace = -SIMD_INFINITY;

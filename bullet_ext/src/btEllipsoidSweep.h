@@ -56,6 +56,10 @@ public:
 		return m_growthPerLength * (length + m_growthOffset) * btScalar(1 + 1e-5);
 	}
 
+	/// True only when the symmetry search of the previous frame's alignment would keep the frame (S = I, bit for
+	/// bit) for m = U0^T U1: shown without the search (the common case of a small turn in the same frame).
+	static bool keepsFrame(const btMatrix3x3& m);
+
 	/// Cells along the longest side of the swept grid.
 	enum
 	{

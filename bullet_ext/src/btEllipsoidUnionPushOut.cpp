@@ -272,9 +272,26 @@ void btEllipsoidUnionPushOut::collectRayIntervals(const btVector3& origin, const
 	const btEllipsoidWorldCache& cache = *m_cache;
 	m_intervals.resize(0);
 	m_intervalOwner.resize(0);
+	// (Cheap skip: an ellipsoid lies in its world box. Along an axis the ray moves forward on, a box whose far side
+	// lies more than the skin behind the origin holds only points of the line at s < -skin, whose chords are dropped
+	// below; along an axis the ray keeps, a box beside the origin misses the line. A few ulps of the coordinates
+	// keep rounding out of it; realiseExit checks the point it places on every ellipsoid near it anyway.)
+	const btScalar tolerance = btScalar(16) * SIMD_EPSILON * coordinateScale(origin);
+	btVector3 lo, hi;
+	for (int a = 0; a < 3; ++a)
+	{
+		const btScalar reach = skin * btFabs(dir[a]) + tolerance;
+		lo[a] = dir[a] > btScalar(0) ? origin[a] - reach : -SIMD_INFINITY; // the far side must reach past lo
+		hi[a] = dir[a] < btScalar(0) ? origin[a] + reach : SIMD_INFINITY;  // the near side must stay below hi
+		if (dir[a] == btScalar(0))
+			lo[a] = origin[a] - tolerance, hi[a] = origin[a] + tolerance;
+	}
 	for (int k = 0; k < cache.size(); ++k)
 	{
 		const btEllipsoidWorldCache::Entry& e = cache[k];
+		if (e.m_aabbMax.x() < lo.x() || e.m_aabbMax.y() < lo.y() || e.m_aabbMax.z() < lo.z() ||
+			e.m_aabbMin.x() > hi.x() || e.m_aabbMin.y() > hi.y() || e.m_aabbMin.z() > hi.z())
+			continue;
 		const btUnitBallQuadratic quadratic =
 			btUnitBallQuadratic::ofLine(e.m_whiten * (origin - e.m_center), e.m_whiten * dir);
 		if (!(quadratic.m_a > btScalar(0)))
@@ -428,10 +445,20 @@ bool blocksRay(const btEllipsoidWorldCache::Entry& e, const btVector3& p, const 
 
 bool btEllipsoidUnionPushOut::rayEscapes(const btVector3& p, const btVector3& dir) const
 {
+	// (Cheap skip, not needed for soundness, as in axisRayEscapes: an ellipsoid lies in its world box, and a box that
+	// lies behind p along an axis the ray moves forward on, or beside p along an axis it keeps, cannot meet the ray.
+	// Most of the 26 lattice rays keep one or two coordinates.)
 	const btEllipsoidWorldCache& cache = *m_cache;
 	for (int k = 0; k < cache.size(); ++k)
-		if (blocksRay(cache[k], p, cache[k].m_whiten * dir))
+	{
+		const btEllipsoidWorldCache::Entry& e = cache[k];
+		bool behind = false;
+		for (int a = 0; a < 3; ++a)
+			behind = behind || (dir[a] >= btScalar(0) && e.m_aabbMax[a] < p[a]) ||
+					 (dir[a] <= btScalar(0) && e.m_aabbMin[a] > p[a]);
+		if (!behind && blocksRay(e, p, e.m_whiten * dir))
 			return false;
+	}
 	return true;
 }
 
@@ -472,36 +499,39 @@ void btEllipsoidUnionPushOut::buildAxisBins(int axis)
 		bins.m_dims[i] = btMax(1, btMin(int(kEscapeBinsLongestSide), int(extent[i] * bins.m_invBin) + 1));
 	}
 	const int nbins = bins.m_dims[0] * bins.m_dims[1];
-	bins.m_start.resize(nbins + 1);
-	for (int b = 0; b <= nbins; ++b)
-		bins.m_start[b] = 0;
-	for (int pass = 0; pass < 2; ++pass)
+	const int n = cache.size();
+	// Each ellipsoid's range of bins once (four ints: i0, i1, j0, j1), then count, prefix sums and fill.
+	m_binRanges.resize(4 * n);
+	int* range = n > 0 ? &m_binRanges[0] : 0;
+	for (int k = 0; k < n; ++k)
 	{
-		for (int k = 0; k < cache.size(); ++k)
-		{
-			const btEllipsoidWorldCache::Entry& e = cache[k];
-			const int i0 = bins.binCoord(e.m_aabbMin[bins.m_axes[0]], 0), i1 = bins.binCoord(e.m_aabbMax[bins.m_axes[0]], 0);
-			const int j0 = bins.binCoord(e.m_aabbMin[bins.m_axes[1]], 1), j1 = bins.binCoord(e.m_aabbMax[bins.m_axes[1]], 1);
-			for (int j = j0; j <= j1; ++j)
-				for (int i = i0; i <= i1; ++i)
-				{
-					const int b = j * bins.m_dims[0] + i;
-					if (pass == 0)
-						++bins.m_start[b + 1];
-					else
-						bins.m_items[m_binFill[b]++] = k;
-				}
-		}
-		if (pass == 0)
-		{
-			for (int b = 0; b < nbins; ++b)
-				bins.m_start[b + 1] += bins.m_start[b];
-			bins.m_items.resize(bins.m_start[nbins]);
-			m_binFill.resize(nbins);
-			for (int b = 0; b < nbins; ++b)
-				m_binFill[b] = bins.m_start[b];
-		}
+		const btEllipsoidWorldCache::Entry& e = cache[k];
+		range[4 * k] = bins.binCoord(e.m_aabbMin[bins.m_axes[0]], 0);
+		range[4 * k + 1] = bins.binCoord(e.m_aabbMax[bins.m_axes[0]], 0);
+		range[4 * k + 2] = bins.binCoord(e.m_aabbMin[bins.m_axes[1]], 1);
+		range[4 * k + 3] = bins.binCoord(e.m_aabbMax[bins.m_axes[1]], 1);
 	}
+	bins.m_start.resize(nbins + 1);
+	int* start = &bins.m_start[0];
+	for (int b = 0; b <= nbins; ++b)
+		start[b] = 0;
+	const int dimX = bins.m_dims[0];
+	for (int k = 0; k < n; ++k)
+		for (int j = range[4 * k + 2]; j <= range[4 * k + 3]; ++j)
+			for (int i = range[4 * k]; i <= range[4 * k + 1]; ++i)
+				++start[j * dimX + i + 1];
+	for (int b = 0; b < nbins; ++b)
+		start[b + 1] += start[b];
+	bins.m_items.resizeNoInitialize(start[nbins]);
+	m_binFill.resizeNoInitialize(nbins);
+	int* fill = &m_binFill[0];
+	for (int b = 0; b < nbins; ++b)
+		fill[b] = start[b];
+	int* items = start[nbins] > 0 ? &bins.m_items[0] : 0;
+	for (int k = 0; k < n; ++k)
+		for (int j = range[4 * k + 2]; j <= range[4 * k + 3]; ++j)
+			for (int i = range[4 * k]; i <= range[4 * k + 1]; ++i)
+				items[fill[j * dimX + i]++] = k;
 }
 
 int btEllipsoidUnionPushOut::axisRaysEscape(int axis, const btVector3& p) const

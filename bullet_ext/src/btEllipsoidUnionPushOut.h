@@ -98,6 +98,7 @@ private:
 	const btEllipsoidWorldCache* m_escapeRaysCache; ///< the cache the bins were built for (0: none)
 	int m_escapeRaysCount;                          ///< its size then
 	btAlignedObjectArray<int> m_binFill;            ///< scratch of prepareEscapeRays
+	btAlignedObjectArray<int> m_binRanges;          ///< scratch of buildAxisBins: each ellipsoid's bins, 4 ints
 	btAlignedObjectArray<btScalar> m_intervals; ///< chord of ellipsoid m_intervalOwner[i] along the current ray:
 												///< [2i] start, [2i + 1] end (widened by the skin), sorted by start
 	btAlignedObjectArray<int> m_intervalOwner;

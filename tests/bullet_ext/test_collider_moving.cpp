@@ -6,6 +6,7 @@
 // the far side; free probes the ellipsoid hits move with its surface. Before the per-ellipsoid motion the 10 m/s
 // translation (8.3 cm per 1/120 s substep, 10 cm thick) left the cloth behind the arm.
 #include "moving_test_scene.h"
+#include "src/btEllipsoidSweep.h"
 
 #include "BulletCollision/CollisionShapes/btSphereShape.h"
 #include "BulletDynamics/Dynamics/btRigidBody.h"
@@ -16,6 +17,7 @@
 #include <Eigen/Geometry>
 
 #include <cstdio>
+#include <random>
 
 using bodyfit_test::MovingMotion;
 using bodyfit_test::MovingPose;
@@ -573,4 +575,70 @@ TEST_CASE("moving ellipsoids: the same ellipsoid handed over in an equivalent fr
 	// of free fall); a frame read as a half turn carries a node across the ellipsoid (decimetres: 0.87 m per substep
 	// with alignPreviousFrame disabled).
 	CHECK(worstStep <= 0.002);
+}
+
+TEST_CASE("moving ellipsoids: the frame alignment's shortcut keeps a frame only where the symmetry search would",
+		  "[bullet_ext][collider][moving][align]")
+{
+	// btEllipsoidSweep::keepsFrame skips the search over the 24 axis symmetries S (the largest trace(S^T m), S = I
+	// first and kept on ties) when the diagonal of m = U0^T U1 dominates its columns. Checked against that search, in
+	// btScalar as alignPreviousFrame computes it, on small turns (where the shortcut must fire: the common case),
+	// large turns and frames handed over with axes swapped or signs flipped (where the search must run).
+	std::mt19937 rng(20261204);
+	std::uniform_real_distribution<double> u(-1.0, 1.0);
+	const int perms[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {1, 0, 2}, {0, 2, 1}, {2, 1, 0}};
+	int kept = 0, smallTurns = 0, smallKept = 0;
+	for (int trial = 0; trial < 20000; ++trial)
+	{
+		const Eigen::Vector3d axis = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+		const double angle = trial % 2 ? 0.2 * u(rng) : 3.0 * u(rng); // radians: small turns and any turn
+		const Eigen::Vector3d radii(0.02 + 0.1 * std::abs(u(rng)), 0.02 + 0.1 * std::abs(u(rng)),
+									0.02 + 0.1 * std::abs(u(rng)));
+		Eigen::Matrix3d u0 = Eigen::Matrix3d(Eigen::AngleAxisd(3.0 * u(rng), Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized()));
+		Eigen::Matrix3d u1 = Eigen::AngleAxisd(angle, axis) * u0;
+		u0 = u0 * radii.asDiagonal();
+		u1 = u1 * (radii * (1.0 + 0.05 * u(rng))).asDiagonal();
+		if (trial % 5 == 0) // the same ellipsoid handed over with two axes swapped and one sign flipped
+		{
+			u1.col(0).swap(u1.col(1));
+			u1.col(2) = -u1.col(2);
+		}
+		const btMatrix3x3 b0 = bodyfit_test::toBt(u0), b1 = bodyfit_test::toBt(u1);
+		const btMatrix3x3 m = b0.transpose() * b1;
+		btScalar bestTrace = -SIMD_INFINITY;
+		bool identityBest = false;
+		for (int p = 0; p < 6; ++p)
+			for (int signs = 0; signs < 8; ++signs)
+			{
+				btScalar sign[3];
+				btScalar det = p < 3 ? btScalar(1) : btScalar(-1);
+				for (int k = 0; k < 3; ++k)
+					det *= (sign[k] = (signs >> k) & 1 ? btScalar(-1) : btScalar(1));
+				if (!(det > btScalar(0)))
+					continue;
+				const btScalar trace =
+					sign[0] * m[perms[p][0]][0] + sign[1] * m[perms[p][1]][1] + sign[2] * m[perms[p][2]][2];
+				if (trace > bestTrace)
+				{
+					bestTrace = trace;
+					identityBest = p == 0 && signs == 0;
+				}
+			}
+		const bool shortcut = btEllipsoidSweep::keepsFrame(m);
+		if (shortcut)
+		{
+			++kept;
+			CHECK(identityBest);
+		}
+		if (trial % 5 != 0 && std::abs(angle) < 0.2)
+		{
+			++smallTurns;
+			smallKept += shortcut ? 1 : 0;
+		}
+	}
+	INFO("kept " << kept << ", small turns " << smallTurns << " of which kept " << smallKept);
+	// Under 0.2 rad (11 degrees) and 5% of reshaping the diagonal dominates unless two semi-axes are nearly equal
+	// (then a turn mixes their columns): most small turns take the shortcut, swapped frames never do.
+	CHECK(smallKept * 10 >= smallTurns * 7);
+	CHECK(kept > 0);
 }

@@ -242,8 +242,16 @@ public:
 
 	/// World -> body frame (the grid's frame).
 	const btTransform& getInverseTransform() const { return m_inverse; }
-	/// Grid builds so far (an update that kept the grid leaves it unchanged).
+	/// Grid builds so far (an update that kept the grid leaves it unchanged, as does one that only moved ellipsoids to
+	/// the box-tested set).
 	int getGridBuilds() const { return m_gridBuilds; }
+	/// The ellipsoids of an animated compound that left their margins since the last build (at most
+	/// kMaxBoxTested): the queries test their world boxes on every call instead of trusting their (stale) lists.
+	int getNumBoxTested() const { return m_boxTested.size(); }
+	/// The last update() kept the grid (no build): every ellipsoid's pose before that update was held by the lists as
+	/// its current pose is (within its margin of its pose at the build, or box-tested), hence, the drift being convex
+	/// along the linear interpolation of centre and frame, every pose between.
+	bool listsHoldPreviousPoses() const { return m_listsHoldPrevious; }
 	/// The margin the grid lists were built with (metres; 0 unless the compound is animated, see gridCovers).
 	btScalar getGridMargin() const { return m_gridMargin; }
 	/// Edge of a grid cell (metres).
@@ -280,6 +288,11 @@ public:
 		template <class Index>
 		static int filterByBox(Index index, int n, const btVector3* boxes, const btVector3& boxMin,
 							   const btVector3& boxMax, int* out);
+		/// Adds the box-tested ellipsoids (getNumBoxTested) whose box overlaps [boxMin, boxMax] and that are not yet
+		/// among out[0, nc) (room for size() indices); returns the new count.
+		int addBoxTested(const btVector3& boxMin, const btVector3& boxMax, int* out, int nc) const;
+		/// Sets m_boxTestedMin and m_boxTestedMax from m_boxes (an inverted box when there are none).
+		void setBoxTestedBounds();
 		/// Indices of a cell list.
 		struct ListIndex
 		{
@@ -296,6 +309,10 @@ public:
 		const int* m_cellItems;
 		const int* m_wideStart;
 		const int* m_wideItems;
+		const int* m_boxTested;   ///< the cache's box-tested ellipsoids (m_numBoxTested of them)
+		int m_numBoxTested;
+		btVector3 m_boxTestedMin; ///< the box around their boxes (in m_boxes)
+		btVector3 m_boxTestedMax;
 		btVector3 m_unionMin;     ///< the union's box (inverted when the cache is empty)
 		btVector3 m_unionMax;
 		btScalar m_invCell;
@@ -372,14 +389,25 @@ private:
 	btAlignedObjectArray<btScalar> m_gridMargins;
 	int m_gridBuilds;
 	int m_updatesSinceBuild; ///< animated updates the lists covered since they were built
+	bool m_listsHoldPrevious; ///< see listsHoldPreviousPoses
+	/// Ellipsoids that left their margins since the last build, in the order they left (their list entries stay, for
+	/// their poses at the build; the queries add them by their boxes), and a flag per ellipsoid.
+	btAlignedObjectArray<int> m_boxTested;
+	btAlignedObjectArray<unsigned char> m_isBoxTested;
+	enum
+	{
+		/// Box-tested ellipsoids are a box test per query each: beyond this many a build is cheaper.
+		kMaxBoxTested = 12
+	};
 	btAlignedObjectArray<btVector3> m_gridCenters;
 	btAlignedObjectArray<btMatrix3x3> m_gridUnwhiten; ///< R diag(a)
 
 	/// \param animated the compound changed with the same count: build with margins (chooseGridMargins)
 	void buildGrid(bool animated);
 	/// Every ellipsoid i of m_shape lies within m_gridMargins[i] of its pose at the last build (driftSinceBuild), so
-	/// the lists still hold it.
-	bool gridCovers() const;
+	/// the lists still hold it, or is box-tested. Those that left their margins are added to the box-tested set; false
+	/// (the grid must be built) when they would be more than kMaxBoxTested (or the lists have no margins).
+	bool gridCovers();
 	/// An upper bound of how far any point of ellipsoid i moved since the last build: |c - c_b| + |U - U_b|_2 <=
 	/// |c - c_b| + |U - U_b|_F (U = R diag(a)).
 	btScalar driftSinceBuild(int i) const;
@@ -470,7 +498,10 @@ BT_ELLIPSOID_ALWAYS_INLINE int btEllipsoidWorldCache::PathQuery::candidates(cons
 	else
 		return walkCells(q, x, boxMin, boxMax, out);
 	const ListIndex list = {items + start[c]};
-	return filterByBox(list, start[c + 1] - start[c], m_boxes, boxMin, boxMax, out);
+	const int nc = filterByBox(list, start[c + 1] - start[c], m_boxes, boxMin, boxMax, out);
+	return m_numBoxTested > 0 && boxesOverlap(boxMin, boxMax, m_boxTestedMin, m_boxTestedMax)
+			   ? addBoxTested(boxMin, boxMax, out, nc)
+			   : nc;
 }
 
 #endif // BT_ELLIPSOID_COMPOUND_SHAPE_H
