@@ -45,6 +45,7 @@ std::vector<std::vector<BoundPoint>> bindPoints(const TriMesh& mesh, const std::
 			points[std::size_t(owner[std::size_t(v)])].push_back({{v, v, v}, {1.0, 0.0, 0.0}});
 	std::vector<std::set<int>> extraVertices(k);
 	std::vector<std::vector<BoundPoint>> grid(k);
+	std::vector<char> added; // per face: (corner slot of the ellipsoid, i, j) already handed, sized per face
 	for (int f = 0; f < mesh.faceCount(); ++f)
 	{
 		const std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
@@ -54,7 +55,16 @@ std::vector<std::vector<BoundPoint>> bindPoints(const TriMesh& mesh, const std::
 		const Eigen::Vector3d a = mesh.V.row(v[0]), b = mesh.V.row(v[1]), d = mesh.V.row(v[2]);
 		const int level = coverCutLevel(a, b, d, spacing);
 		auto at = [&](int i, int j) { return Eigen::Vector3d((double(i) * a + double(j) * b + double(level - i - j) * d) / double(level)); };
-		std::set<std::array<int, 3>> added; // (ellipsoid, i, j) within this face
+		const std::size_t side = std::size_t(level + 1);
+		added.assign(3 * side * side, 0);
+		// True the first time grid point (i, j) is handed to ellipsoid `id` (one of the corner clusters c) in this face.
+		auto firstHandout = [&](int id, int i, int j) {
+			const std::size_t slot = id == c[0] ? 0 : id == c[1] ? 1 : 2;
+			char& seen = added[(slot * side + std::size_t(i)) * side + std::size_t(j)];
+			const bool first = seen == 0;
+			seen = 1;
+			return first;
+		};
 		auto hand = [&](const std::array<std::array<int, 2>, 3>& piece) {
 			int best = -1;
 			double bestZeta = 0.0;
@@ -85,7 +95,7 @@ std::vector<std::vector<BoundPoint>> bindPoints(const TriMesh& mesh, const std::
 					if (owner[std::size_t(vertex)] != best)
 						extraVertices[std::size_t(best)].insert(vertex);
 				}
-				else if (added.insert({best, i, j}).second)
+				else if (firstHandout(best, i, j))
 					grid[std::size_t(best)].push_back(
 						{v, {double(i) / double(level), double(j) / double(level), double(rest) / double(level)}});
 			}
