@@ -218,6 +218,11 @@ private:
 		}
 	}
 
+	static bool isCornerCluster(const Triangle& tri, int id)
+	{
+		return id == tri.clusters[0] || id == tri.clusters[1] || id == tri.clusters[2];
+	}
+
 	bool contains(int id, const std::array<int, 3>& corners) const
 	{
 		const Eigen::AlignedBox3d& box = boxes_[std::size_t(id)];
@@ -250,9 +255,10 @@ private:
 				return v;
 			}
 		}
+		// The corner clusters fail `contains` here (it is the `inside` test above), so only the others are tried.
 		const auto [first, last] = grid_.candidates(cover_.points_[std::size_t(corners[0])]);
 		for (const int* id = first; id != last; ++id)
-			if (contains(*id, corners))
+			if (!isCornerCluster(tri, *id) && contains(*id, corners))
 			{
 				v.coveredBy = *id;
 				return v;
