@@ -36,7 +36,7 @@ namespace
 const char* kUsage =
 	"usage: bodyfit-drape SCENE.json [--body MESH] [--ellipsoids FIT.json] [--collider KIND] [--steps N]\n"
 	"                     [--surface tight|ellipsoids] [--frames DIR] [--metrics OUT.json] [--png OUT.png] [--show body|ellipsoids]\n"
-	"                     [--png-zoom X,Y,Z,R]\n"
+	"                     [--png-zoom X,Y,Z,R] [--skin-mesh]\n"
 	"\n"
 	"Runs a cloth scene (demos/scenes/*.json) headless with Bullet and writes metrics and pictures.\n"
 	"  --body MESH          body mesh instead of the scene's body.mesh\n"
@@ -45,6 +45,8 @@ const char* kUsage =
 	"                       (overrides collider.kind)\n"
 	"  --surface S          tight (the skin field inside the union, default) | ellipsoids (the paper's\n"
 	"                       pure ellipsoid response); overrides collider.surface\n"
+	"  --skin-mesh          animated body, tight surface: also decide the joints on the skinned mesh of\n"
+	"                       the instant (opt-in, collider.skin_mesh; tighter, ~5x the collider's cost)\n"
 	"  --steps N            number of steps (default: the scene's solver.steps)\n"
 	"  --frames DIR         write the cloth as DIR/frame_NNNNN.obj every output.frame_every steps (and\n"
 	"                       an animated body's skinned mesh as DIR/body_NNNNN.obj), DIR/frames.json\n"
@@ -74,6 +76,7 @@ struct Args
 {
 	std::string scene, body, ellipsoids, collider, surface, frames, metrics, png, show;
 	int steps = -1;
+	bool skinMesh = false; ///< --skin-mesh
 	std::optional<Eigen::Vector4d> pngZoom; ///< --png-zoom: centre x, y, z and half size R (metres)
 };
 
@@ -126,6 +129,8 @@ Args parseArgs(int argc, char** argv)
 			a.collider = value();
 		else if (s == "--surface")
 			a.surface = value();
+		else if (s == "--skin-mesh")
+			a.skinMesh = true;
 		else if (s == "--frames")
 			a.frames = value();
 		else if (s == "--metrics")
@@ -355,6 +360,8 @@ int main(int argc, char** argv)
 			throw InvalidInputError("--surface: '" + args.surface + "' is not one of tight, ellipsoids");
 		if (!args.surface.empty())
 			scene.collider.tightSurface = args.surface == "tight";
+		if (args.skinMesh)
+			scene.collider.skinMesh = true;
 		if (!args.show.empty())
 			scene.render.showEllipsoids = args.show == "ellipsoids";
 		for (const std::string* p : {&args.body, &args.ellipsoids})

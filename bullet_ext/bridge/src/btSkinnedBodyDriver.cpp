@@ -108,7 +108,8 @@ void btSkinnedBodyDriver::setCompound(btEllipsoidCompoundShape* compound)
 	if (m_compound && m_skinMesh && m_compound->getSkinMesh() == m_skinMesh.get())
 		m_compound->setSkinMesh(0);
 	m_compound = compound;
-	if (compound && compound->getBindPose() && compound->getSkinField() && !m_skinMesh)
+	const bool skinMesh = m_skinMeshEnabled && compound && compound->getBindPose() && compound->getSkinField();
+	if (skinMesh && !m_skinMesh)
 	{
 		const TriMesh& bind = m_body->rig().bindMesh;
 		std::vector<int> triangles(std::size_t(bind.F.rows()) * 3);
@@ -125,7 +126,7 @@ void btSkinnedBodyDriver::setCompound(btEllipsoidCompoundShape* compound)
 			throw InvalidInputError(std::string("btSkinnedBodyDriver: ") + why);
 		m_skinMesh = std::move(mesh);
 	}
-	if (compound && compound->getBindPose() && compound->getSkinField())
+	if (skinMesh)
 		compound->setSkinMesh(m_skinMesh.get());
 	writeCompound();
 }

@@ -322,6 +322,7 @@ ColliderSpec parseCollider(const json& j, ObjectReader& top)
 	c.shapeMargin = r.number("shape_margin_m", c.shapeMargin, 0.0, 0.1);
 	c.contactHardness = r.number("contact_hardness", c.contactHardness, 0.0, 1.0, true);
 	c.tightSurface = r.string("surface", "tight", {"tight", "ellipsoids"}) == "tight";
+	c.skinMesh = r.boolean("skin_mesh", c.skinMesh);
 	r.finish();
 	return c;
 }

@@ -682,6 +682,7 @@ void DrapeSimulation::buildSkinnedDriver()
 	Impl& im = *impl_;
 	const AnimatedBodyData& a = *body_.animation;
 	im.driver = std::make_unique<btSkinnedBodyDriver>(*a.rig, a.fit, *a.binding, a.animationClip(), a.timing);
+	im.driver->setSkinMeshEnabled(scene_.collider.skinMesh);
 	if (im.ellipsoidCompound)
 		im.driver->setCompound(im.ellipsoidCompound.get());
 	if (im.triangleMesh)

@@ -104,12 +104,19 @@ public:
 	/// animated body), every update also writes its bone frames: per ellipsoid its dominant bone and that bone's
 	/// skinning motion when its skin moves with it: a rigid ellipsoid, or one whose bones all move like the dominant
 	/// one within frameTolerance() over its bind ellipsoid (-1 otherwise: a bending joint).
-	/// With a bind pose and a skin field (the tight surface) the driver also gives the compound the skinned mesh of
-	/// each pose (btEllipsoidCompoundShape::setSkinMesh: rig.bindMesh's triangles, owned by the driver, detached from
+	/// With setSkinMeshEnabled(true), a bind pose and a skin field (the tight surface) the driver also gives the
+	/// compound the skinned mesh of each pose (btEllipsoidCompoundShape::setSkinMesh: rig.bindMesh's triangles, owned by the driver, detached from
 	/// the compound by the next setCompound and the destructor, so the compound must outlive the driver or be
 	/// replaced first), written in the same update as the ellipsoids.
 	/// \throws InvalidInputError when its ellipsoid count differs from the fit's. Writes the current pose at once.
 	void setCompound(btEllipsoidCompoundShape* compound);
+	/// Whether setCompound gives the compound the skinned mesh of each pose (default false). Opt-in: the collider
+	/// then decides the tight surface's joint nodes on that mesh (contact gap ~3.5 mm instead of ~15 mm on the
+	/// bundled walk) at ~5x the collider's cost per node and ~1 ms more per pose, and its sign test can be fooled
+	/// where the skinned skin folds into itself (1 node inside at one sample of the walk tights, README "Animated
+	/// bodies"). Takes effect at the next setCompound.
+	void setSkinMeshEnabled(bool enabled) { m_skinMeshEnabled = enabled; }
+	bool isSkinMeshEnabled() const { return m_skinMeshEnabled; }
 	/// The triangle mesh (of rig.bindMesh) whose vertices are replaced at every update; null: none.
 	/// \throws InvalidInputError when its vertex count differs. Writes the current pose at once.
 	void setMesh(btRefitTriangleMesh* mesh);
@@ -151,7 +158,8 @@ private:
 	std::unique_ptr<SkinnedBody> m_body;
 	btEllipsoidCompoundShape* m_compound = nullptr;
 	btRefitTriangleMesh* m_mesh = nullptr;
-	std::unique_ptr<btSkinMesh> m_skinMesh; ///< given to m_compound when it has a bind pose and a skin field
+	std::unique_ptr<btSkinMesh> m_skinMesh; ///< given to m_compound when enabled and it has a bind pose and a skin field
+	bool m_skinMeshEnabled = false;
 	double m_time = 0.0;
 	double m_clipTime = 0.0;
 	long long m_revision = 0;

@@ -82,6 +82,9 @@ struct ColliderSpec
 	/// ellipsoids: "tight" (default) decides contact on the body's skin field (the fit's side file, or baked at load)
 	/// inside the union; "ellipsoids" is the paper's pure ellipsoid response. Animated bodies use the ellipsoids.
 	bool tightSurface = true;
+	/// ellipsoids, tight surface, animated body: also decide the joints on the skinned mesh of the instant
+	/// (btSkinnedBodyDriver::setSkinMeshEnabled; default false, see its cost and limit there).
+	bool skinMesh = false;
 };
 
 enum class GarmentType
