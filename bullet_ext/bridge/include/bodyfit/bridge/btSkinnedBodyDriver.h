@@ -112,9 +112,9 @@ public:
 	void setCompound(btEllipsoidCompoundShape* compound);
 	/// Whether setCompound gives the compound the skinned mesh of each pose (default false). Opt-in: the collider
 	/// then decides the tight surface's joint nodes on that mesh (contact gap ~3.5 mm instead of ~15 mm on the
-	/// bundled walk) at ~5x the collider's cost per node and ~1 ms more per pose, and its sign test can be fooled
-	/// where the skinned skin folds into itself (1 node inside at one sample of the walk tights, README "Animated
-	/// bodies"). Takes effect at the next setCompound.
+	/// bundled walk) at ~5x the collider's cost per node and ~1 ms more per pose, and without the default's
+	/// guarantee: 1 node inside the body at one sample of the walk tights (README "Animated bodies"). Takes effect
+	/// at the next setCompound.
 	void setSkinMeshEnabled(bool enabled) { m_skinMeshEnabled = enabled; }
 	bool isSkinMeshEnabled() const { return m_skinMeshEnabled; }
 	/// The triangle mesh (of rig.bindMesh) whose vertices are replaced at every update; null: none.
