@@ -753,6 +753,15 @@ void listsFromPairs(const btAlignedObjectArray<int>& pairs, int cells, btAligned
 	for (int p = 0; p < count; ++p)
 		items[cursor[pairs[2 * p]]++] = pairs[2 * p + 1];
 }
+
+/// Whether k is among the first n entries of a candidate list (a handful long: a linear scan beats a stamp array).
+bool listedIn(const int* out, int n, int k)
+{
+	for (int m = 0; m < n; ++m)
+		if (out[m] == k)
+			return true;
+	return false;
+}
 } // namespace
 
 void btEllipsoidWorldCache::buildLists()
@@ -996,12 +1005,8 @@ int btEllipsoidWorldCache::PathQuery::walkCells(const btVector3& q, const btVect
 					const int k = m_cellItems[j];
 					if (!boxesOverlap(boxMin, boxMax, m_boxes[2 * k], m_boxes[2 * k + 1]))
 						continue;
-					// A box spanning several cells meets an ellipsoid in each: keep the first (the candidate list is
-					// a handful long, a linear scan beats a stamp array here).
-					int m = 0;
-					while (m < nc && out[m] != k)
-						++m;
-					if (m == nc)
+					// A box spanning several cells meets an ellipsoid in each: keep the first.
+					if (!listedIn(out, nc, k))
 						out[nc++] = k;
 				}
 			}
@@ -1021,10 +1026,7 @@ int btEllipsoidWorldCache::PathQuery::addBoxTested(const btVector3& boxMin, cons
 		const int k = m_boxTested[b];
 		if (!boxesOverlap(boxMin, boxMax, m_boxes[2 * k], m_boxes[2 * k + 1]))
 			continue;
-		int m = 0;
-		while (m < listed && out[m] != k)
-			++m;
-		if (m == listed)
+		if (!listedIn(out, listed, k))
 			out[nc++] = k;
 	}
 	return nc;
