@@ -65,6 +65,7 @@ void btEllipsoidClothStats::reset()
 	m_nodesTested = 0;
 	m_nodesCorrected = 0;
 	m_nodesPushedOut = 0;
+	m_nodesLifted = 0;
 	m_nodesRepaired = 0;
 	m_pushOutFallbacks = 0;
 	m_pushOutEnclosed = 0;
@@ -86,6 +87,7 @@ void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
 	m_nodesTested += other.m_nodesTested;
 	m_nodesCorrected += other.m_nodesCorrected;
 	m_nodesPushedOut += other.m_nodesPushedOut;
+	m_nodesLifted += other.m_nodesLifted;
 	m_nodesRepaired += other.m_nodesRepaired;
 	m_pushOutFallbacks += other.m_pushOutFallbacks;
 	m_pushOutEnclosed += other.m_pushOutEnclosed;
@@ -189,6 +191,7 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_contactFlags(0),
 	  m_escapeHints(0),
 	  m_skinMeshHints(0),
+	  m_liftedNodes(0),
 	  m_contactNodeBase(0),
 	  m_boneFields(false),
 	  m_skinGroup(-1),
@@ -411,6 +414,8 @@ void btEllipsoidClothColliderCore::beginContactRecord(const btSoftBody* softBody
 	m_escapeHints = n > 0 ? &record.m_escapeHints[0] : 0;
 	record.m_skinMeshHints.resize(n, -1);
 	m_skinMeshHints = n > 0 ? &record.m_skinMeshHints[0] : 0;
+	record.m_lifted.resize(n, 0);
+	m_liftedNodes = n > 0 ? &record.m_lifted[0] : 0;
 	m_contactNodeBase = n > 0 ? &softBody->m_nodes[0] : 0;
 }
 
@@ -473,6 +478,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 		m_contactFlags = 0;
 		m_escapeHints = 0;
 		m_skinMeshHints = 0;
+		m_liftedNodes = 0;
 		return;
 	}
 	Substep substep(m_current, btMax(m_config.m_skinOffset, btScalar(0)), dt, m_sweepOnGrid ? &m_sweep : 0,
@@ -519,10 +525,13 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 				leavePocket(node, substep, minZeta);
 		}
 		stats.m_minZeta = minZeta;
+		if (m_skinGeometry.field() && m_config.m_liftEdges)
+			liftEdgesOffSkin(softBody);
 	}
 	m_contactFlags = 0;
 	m_escapeHints = 0;
 	m_skinMeshHints = 0;
+	m_liftedNodes = 0;
 	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
 	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
 }

@@ -106,6 +106,7 @@ private:
 		btAlignedObjectArray<unsigned char> m_flags;
 		btAlignedObjectArray<unsigned char> m_escapeHints;
 		btAlignedObjectArray<int> m_skinMeshHints; ///< per node: its closest skin-mesh triangle last time, or -1
+		btAlignedObjectArray<unsigned char> m_lifted; ///< per node: a link lifted it in the last substep
 	};
 
 	btEllipsoidCompoundShape* m_ownedCompound;
@@ -142,7 +143,10 @@ private:
 	unsigned char* m_contactFlags;             ///< the flags collide() fills (0 outside collide())
 	unsigned char* m_escapeHints;              ///< that soft body's escape hints (0 outside collide())
 	int* m_skinMeshHints;                      ///< that soft body's skin-mesh hints (0 outside collide())
+	unsigned char* m_liftedNodes;              ///< that soft body's lifted-node marks (0 outside collide())
 	const btSoftBody::Node* m_contactNodeBase; ///< node 0 of that soft body
+	btAlignedObjectArray<btVector3> m_edgeLift;    ///< liftEdgesOffSkin: per node, the largest rise its edges ask
+	btAlignedObjectArray<btScalar> m_edgeLiftSize; ///< ... and its length (0: none)
 
 	/// The soft body's record, cleared and sized to its nodes, marked current; m_contactFlags points into it.
 	void beginContactRecord(const btSoftBody* softBody);
@@ -227,6 +231,11 @@ private:
 	/// \return the field at the node's final position.
 	btScalar pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb, const btVector3& center,
 					   const Substep& substep);
+	/// Config::m_liftEdges, after the node responses of a substep that did not sweep: every cloth edge at a node in
+	/// contact (this substep, or lifted in the last) whose midpoint lies within half the skin offset of the skin asks
+	/// its nodes to rise along the field's gradient there, split by inverse mass; each node takes the largest rise its
+	/// edges ask (capped at 2 offset / L), only between points at the skin offset or more.
+	void liftEdgesOffSkin(btSoftBody* softBody);
 	/// The field geometry collideOnSkin works with (m_skinGroup).
 	const btSkinFieldGeometry& skinGeometry() const
 	{

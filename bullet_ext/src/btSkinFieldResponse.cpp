@@ -310,6 +310,83 @@ bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const b
 	return stopped;
 }
 
+void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
+{
+	const btSkinFieldGeometry& geometry = m_skinGeometry;
+	const btSkinDistanceField& field = *geometry.field();
+	// Edges clear the skin by half the skin offset: a link at the offset on a flat skin is untouched, and the lift
+	// raises its nodes only by what the link's sag over a curved skin takes below that.
+	const btScalar clearance = btScalar(0.5) * geometry.offset();
+	const int numNodes = softBody->m_nodes.size();
+	if (!(clearance > btScalar(0)) || numNodes == 0)
+		return;
+	// A node moved at most 2 offset / L from a point at field >= offset to another such point passes no point below 0
+	// (each point of the move is within offset / L of an end): the lifted node's path stays outside the skin.
+	const btScalar maxMove = btScalar(2) * geometry.offset() / field.getLipschitz();
+	const btScalar floor = geometry.offset() - geometry.tolerance();
+	btSoftBody::Node* base = &softBody->m_nodes[0];
+	m_edgeLift.resize(numNodes);
+	m_edgeLiftSize.resize(numNodes);
+	for (int i = 0; i < numNodes; ++i)
+		m_edgeLiftSize[i] = btScalar(0);
+	bool any = false;
+	for (int l = 0; l < softBody->m_links.size(); ++l)
+	{
+		const btSoftBody::Link& link = softBody->m_links[l];
+		if (link.m_bbending)
+			continue; // a bending link is a spring across two faces, not an edge of the cloth
+		const int ia = int(link.m_n[0] - base), ib = int(link.m_n[1] - base);
+		// Links at a node in contact this substep, or lifted in the last (a lifted node rests above the offset, where
+		// its own path no longer meets the surface).
+		if (!(m_contactFlags[ia] | m_contactFlags[ib] | m_liftedNodes[ia] | m_liftedNodes[ib]))
+			continue;
+		const btScalar wa = base[ia].m_im, wb = base[ib].m_im;
+		if (!(wa + wb > btScalar(0)))
+			continue;
+		const btVector3& xa = base[ia].m_x;
+		const btVector3& xb = base[ib].m_x;
+		// A link stretched past 1.5x its rest length spans something (a limb between nodes on both sides): a lift
+		// at its middle cannot free it without pushing a node into the body.
+		if ((xb - xa).length2() > btScalar(2.25) * link.m_rl * link.m_rl)
+			continue;
+		const btVector3 mid = geometry.toBody() * ((xa + xb) * btScalar(0.5));
+		if (field.distance(mid) >= clearance)
+			continue;
+		btVector3 g;
+		const btScalar f = field.distanceAndGradient(mid, g);
+		const btScalar slope = g.length();
+		if (!(slope > btScalar(0.1)))
+			continue;
+		const btScalar lift = (clearance - f) / slope;
+		const btVector3 n = geometry.toWorld().getBasis() * (g / slope);
+		const int ends[2] = {ia, ib};
+		const btScalar shares[2] = {btScalar(2) * wa / (wa + wb), btScalar(2) * wb / (wa + wb)};
+		for (int k = 0; k < 2; ++k)
+		{
+			const btScalar move = btMin(lift * shares[k], maxMove);
+			if (move > m_edgeLiftSize[ends[k]])
+			{
+				m_edgeLiftSize[ends[k]] = move;
+				m_edgeLift[ends[k]] = n * move;
+				any = true;
+			}
+		}
+	}
+	for (int i = 0; i < numNodes; ++i)
+	{
+		m_liftedNodes[i] = 0;
+		if (!any || !(m_edgeLiftSize[i] > btScalar(0)))
+			continue;
+		const btVector3 x = base[i].m_x + m_edgeLift[i];
+		if (field.distance(geometry.toBody() * x) < floor || field.distance(geometry.toBody() * base[i].m_x) < floor)
+			continue;
+		base[i].m_x = x;
+		m_liftedNodes[i] = 1;
+		m_contactFlags[i] = 1;
+		++m_lastStats.m_nodesLifted;
+	}
+}
+
 // ---------------------------------------------------------------------------------------------------------------
 // Skinned bodies: the bind-pose field in the frame of a bone (members of btEllipsoidClothColliderCore)
 //

@@ -259,6 +259,80 @@ TEST_CASE("tight mode: a cloth dropped on a sphere rests on the skin, not on the
 		CHECK(d > 0.015);
 }
 
+namespace
+{
+
+/// A coarse cloth (0.3 m, 7 x 7 nodes: 5 cm edges, 7 cm diagonals) dropped on the 0.1 m sphere, with or without
+/// Config::m_liftEdges: per edge, the smallest analytic distance to the skin over 9 points of it at the end; per node,
+/// the smallest distance it ever had.
+struct CoarseDrop
+{
+	double minEdgeDistance = 1e30; ///< over the cloth's edges at the end (negative: an edge cuts into the sphere)
+	double minNodeDistance = 1e30; ///< over every node after every step
+	double maxCapDistance = 0;     ///< over the nodes within 30 degrees of +y at the end (resting on the sphere)
+	int edgesTested = 0;           ///< edges with both nodes within 1 cm of the skin at the end
+	int nodesLifted = 0;
+};
+
+CoarseDrop dropCoarseOnSphere(bool liftEdges)
+{
+	ClothScene scene(sphereUnionWithField());
+	btEllipsoidClothCollider::Config config;
+	config.m_liftEdges = liftEdges;
+	REQUIRE(scene.install(config) != nullptr);
+	btSoftBody* cloth = scene.addPatch(btVector3(0, btScalar(0.125), 0), btScalar(0.3), 7);
+	CoarseDrop out;
+	for (int step = 0; step < 120; ++step)
+	{
+		scene.step(btScalar(1.0 / 60));
+		for (int i = 0; i < cloth->m_nodes.size(); ++i)
+			out.minNodeDistance = std::min(out.minNodeDistance, sphereBody(toE(cloth->m_nodes[i].m_x)));
+	}
+	for (int l = 0; l < cloth->m_links.size(); ++l)
+	{
+		const Eigen::Vector3d a = toE(cloth->m_links[l].m_n[0]->m_x), b = toE(cloth->m_links[l].m_n[1]->m_x);
+		if (cloth->m_links[l].m_bbending || sphereBody(a) > 0.01 || sphereBody(b) > 0.01)
+			continue;
+		++out.edgesTested;
+		for (int k = 1; k <= 9; ++k)
+			out.minEdgeDistance = std::min(out.minEdgeDistance, sphereBody(a + (b - a) * (k / 10.0)));
+	}
+	for (int i = 0; i < cloth->m_nodes.size(); ++i)
+	{
+		const Eigen::Vector3d p = toE(cloth->m_nodes[i].m_x);
+		if (p.normalized().y() > std::cos(M_PI / 6))
+			out.maxCapDistance = std::max(out.maxCapDistance, sphereBody(p));
+	}
+	out.nodesLifted = scene.collider()->getAccumulatedStats().m_nodesLifted;
+	return out;
+}
+
+} // namespace
+
+TEST_CASE("tight mode: lifted edges clear the skin between nodes, and nodes stay outside", "[bullet_ext][skinfield][edges]")
+{
+	std::unique_ptr<btEllipsoidCompoundShape> probe = sphereUnionWithField();
+	const double tol = analyticTolerance(*probe->getSkinField());
+	// Without the lift the nodes rest at the 2 mm offset and a 5 cm edge over the 0.1 m sphere sags L^2 / 8R = 3.1 mm
+	// between them: its middle is about 1 mm inside the skin. This is what the lift is for (the case is not vacuous).
+	const CoarseDrop sag = dropCoarseOnSphere(false);
+	REQUIRE(sag.edgesTested >= 12); // the cap's edges at least
+	CHECK(sag.minEdgeDistance < -0.0005);
+	CHECK(sag.nodesLifted == 0);
+	// With it every edge's middle rises to half the offset (1 mm) above the field's zero level, which encloses the
+	// skin; 9 points per edge on a convex skin are at least as far as the middle, up to the field's tolerance.
+	const CoarseDrop lifted = dropCoarseOnSphere(true);
+	REQUIRE(lifted.edgesTested >= 12);
+	CHECK(lifted.nodesLifted > 0);
+	CHECK(lifted.minEdgeDistance >= -tol);
+	// Nodes never end inside the skin offset (the guarantee, lift or not) ...
+	CHECK(sag.minNodeDistance >= kSkin - tol);
+	CHECK(lifted.minNodeDistance >= kSkin - tol);
+	// ... and the lift raises the cap (within 30 degrees of the top) by at most the sag of its longest edge, a 7.1 cm
+	// diagonal: 6.3 mm (the coarse cloth does not conform to the cap either way: its nodes there rest up to ~9 mm off).
+	CHECK(lifted.maxCapDistance <= sag.maxCapDistance + 0.0063);
+}
+
 TEST_CASE("contact flags: set for the cloth resting on the sphere, not for the cloth hanging free", "[bullet_ext][skinfield]")
 {
 	std::unique_ptr<btEllipsoidCompoundShape> probe = sphereUnionWithField();

@@ -388,6 +388,14 @@ TEST_CASE("metrics: cloth edges crossing a hand-made cube, and the deepest cross
 	const EdgeCrossings c = measureEdgeCrossings(*shallow.cloth, body);
 	CHECK(c.crossing == 2);
 	CHECK(c.maxDepth == Approx(0.02).margin(kFloatTolerance));
+	// A bending link (a spring between the far corners of two faces, m_bbending) is not an edge of the cloth's surface:
+	// the same deep segment marked bending is neither counted nor measured.
+	LinkedCloth bending({links[0], links[1]}, btTransform::getIdentity());
+	bending.cloth->m_links[0].m_bbending = 1;
+	const EdgeCrossings b = measureEdgeCrossings(*bending.cloth, body);
+	CHECK(b.links == 1);
+	CHECK(b.crossing == 1);
+	CHECK(b.maxDepth == Approx(0.02).margin(kFloatTolerance));
 	// A ClothMetrics built without the crossings writes null for them.
 	const nlohmann::json none = toJson(ClothMetrics{});
 	CHECK(none["links_crossing_body"].is_null());

@@ -323,6 +323,7 @@ ColliderSpec parseCollider(const json& j, ObjectReader& top)
 	c.contactHardness = r.number("contact_hardness", c.contactHardness, 0.0, 1.0, true);
 	c.tightSurface = r.string("surface", "tight", {"tight", "ellipsoids"}) == "tight";
 	c.skinMesh = r.boolean("skin_mesh", c.skinMesh);
+	c.liftEdges = r.boolean("lift_edges", c.liftEdges);
 	r.finish();
 	return c;
 }

@@ -396,6 +396,8 @@ EdgeCrossings measureEdgeCrossings(const btSoftBody& cloth, const BodyReference&
 	const btSoftBody::Node* base = n > 0 ? &cloth.m_nodes[0] : nullptr;
 	for (int l = 0; l < cloth.m_links.size(); ++l)
 	{
+		if (cloth.m_links[l].m_bbending)
+			continue; // a spring across two faces (btSoftBody::generateBendingConstraints), not an edge of the cloth
 		const int i = int(cloth.m_links[l].m_n[0] - base), j = int(cloth.m_links[l].m_n[1] - base);
 		const Eigen::Vector3d &a = local[size_t(i)], &b = local[size_t(j)];
 		if (!a.allFinite() || !b.allFinite())

@@ -42,6 +42,7 @@ struct btEllipsoidClothStats
 							 ///< convergence): the union push-out moved the node instead
 	int m_skinMarchLimits;   ///< path marches that reached their step limit: the node stopped at the last point
 							 ///< known outside (conservative)
+	int m_nodesLifted;       ///< nodes lifted so their edges clear the skin (Config::m_liftEdges)
 	// Tight mode on a skinned body (the compound has a bind pose and bone frames), substeps whose ellipsoids moved:
 	int m_boneFieldNodes;     ///< tested nodes decided on the bind-pose field in the frame of their candidates' bone
 	int m_boneFieldFallbacks; ///< tested nodes the union response decided instead (a joint: a candidate refitted or
@@ -132,6 +133,14 @@ public:
 		bool m_applyReactionToBody;
 		/// TIGHT_SKIN (default; takes effect when the compound has a skin field) or ELLIPSOIDS.
 		SurfaceMode m_surface;
+		/// TIGHT_SKIN on a body that moves rigidly or not at all: after the node responses of a substep, every cloth
+		/// edge (a link that is not a bending link) at a node in contact whose midpoint lies within half the skin
+		/// offset of the skin is lifted off it along the field's gradient (its nodes moved, split by inverse mass, at
+		/// most 2 offset / L, and only to points at the skin offset or more), so cloth faces do not cut into the skin
+		/// between nodes. Nodes then rest where their edges clear the skin: on skin curved under an edge, higher than
+		/// the offset (by the edge's sag, about L^2 / 8R for an edge of length L on skin of radius R). Default false:
+		/// nodes rest at the offset, and edges longer than about sqrt(8 R offset) sag into the skin between them.
+		bool m_liftEdges;
 
 		Config()
 			: m_skinOffset(btScalar(0.002)),
@@ -139,7 +148,8 @@ public:
 			  m_velocityRule(REMOVE_NORMAL_COULOMB),
 			  m_disableBulletResponse(true),
 			  m_applyReactionToBody(true),
-			  m_surface(TIGHT_SKIN)
+			  m_surface(TIGHT_SKIN),
+			  m_liftEdges(false)
 		{
 		}
 	};

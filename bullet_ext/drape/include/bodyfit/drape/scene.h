@@ -85,6 +85,9 @@ struct ColliderSpec
 	/// ellipsoids, tight surface, animated body: also decide the joints on the skinned mesh of the instant
 	/// (btSkinnedBodyDriver::setSkinMeshEnabled; default false, see its cost and limit there).
 	bool skinMesh = false;
+	/// ellipsoids, tight surface, body at rest or moving rigidly: lift cloth edges off the skin (Config::m_liftEdges;
+	/// default false here and there: nodes rest at the skin offset, and long edges over curved skin sag into it).
+	bool liftEdges = false;
 };
 
 enum class GarmentType

@@ -145,7 +145,7 @@ struct ContactMetrics
 struct EdgeCrossings
 {
 	bool measured = false;  ///< false: not measured (toJson writes null), e.g. a ClothMetrics built without them
-	int links = 0;          ///< links with two finite end nodes
+	int links = 0;          ///< cloth edges (links that are not bending links) with two finite end nodes
 	int crossing = 0;       ///< of those, both ends outside the body mesh and the segment meets a triangle
 	double maxDepth = 0.0;  ///< deepest point inside the body along a crossing link (metres; 0 when none crosses)
 };
@@ -177,7 +177,8 @@ GapSummary summarizeGaps(const std::vector<double>& gaps);
 /// Contact nodes and their gap summary now.
 ContactMetrics measureContacts(const btSoftBody& cloth, const BodyReference& body, const ContactOptions& options);
 
-/// Links crossing the skin now. A link is skipped without triangle tests when its ends' distances to the skin sum
+/// Cloth edges crossing the skin now: every link but the bending links (m_bbending: springs between the far corners
+/// of two faces, which do not bound the cloth's surface). A link is skipped without triangle tests when its ends' distances to the skin sum
 /// to more than its length (no point of the segment can then reach the surface); the others are tested against the
 /// triangles in the grid cells under the segment's box. The depth of a crossing is the largest distance to the skin
 /// over 9 points of each inside stretch between consecutive hits (hit pairs along the segment).
