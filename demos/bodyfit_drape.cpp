@@ -36,7 +36,7 @@ namespace
 const char* kUsage =
 	"usage: bodyfit-drape SCENE.json [--body MESH] [--ellipsoids FIT.json] [--collider KIND] [--steps N]\n"
 	"                     [--surface tight|ellipsoids] [--frames DIR] [--metrics OUT.json] [--png OUT.png] [--show body|ellipsoids]\n"
-	"                     [--png-zoom X,Y,Z,R] [--skin-mesh] [--lift-edges]\n"
+	"                     [--png-zoom X,Y,Z,R] [--skin-mesh] [--no-lift-edges]\n"
 	"\n"
 	"Runs a cloth scene (demos/scenes/*.json) headless with Bullet and writes metrics and pictures.\n"
 	"  --body MESH          body mesh instead of the scene's body.mesh\n"
@@ -47,8 +47,9 @@ const char* kUsage =
 	"                       pure ellipsoid response); overrides collider.surface\n"
 	"  --skin-mesh          animated body, tight surface: also decide the joints on the skinned mesh of\n"
 	"                       the instant (opt-in, collider.skin_mesh; tighter, ~5x the collider's cost)\n"
-	"  --lift-edges         tight surface, static or rigidly moving body: lift cloth edges that sag into\n"
-	"                       the skin between nodes (opt-in, collider.lift_edges; nodes then rest higher)\n"
+	"  --no-lift-edges      tight surface, static or rigidly moving body: keep nodes at the skin offset\n"
+	"                       and let long edges sag into curved skin between them (collider.lift_edges:\n"
+	"                       false; by default such edges are lifted off the skin)\n"
 	"  --steps N            number of steps (default: the scene's solver.steps)\n"
 	"  --frames DIR         write the cloth as DIR/frame_NNNNN.obj every output.frame_every steps (and\n"
 	"                       an animated body's skinned mesh as DIR/body_NNNNN.obj), DIR/frames.json\n"
@@ -79,7 +80,7 @@ struct Args
 	std::string scene, body, ellipsoids, collider, surface, frames, metrics, png, show;
 	int steps = -1;
 	bool skinMesh = false; ///< --skin-mesh
-	bool liftEdges = false; ///< --lift-edges
+	bool noLiftEdges = false; ///< --no-lift-edges
 	std::optional<Eigen::Vector4d> pngZoom; ///< --png-zoom: centre x, y, z and half size R (metres)
 };
 
@@ -134,8 +135,8 @@ Args parseArgs(int argc, char** argv)
 			a.surface = value();
 		else if (s == "--skin-mesh")
 			a.skinMesh = true;
-		else if (s == "--lift-edges")
-			a.liftEdges = true;
+		else if (s == "--no-lift-edges")
+			a.noLiftEdges = true;
 		else if (s == "--frames")
 			a.frames = value();
 		else if (s == "--metrics")
@@ -367,8 +368,8 @@ int main(int argc, char** argv)
 			scene.collider.tightSurface = args.surface == "tight";
 		if (args.skinMesh)
 			scene.collider.skinMesh = true;
-		if (args.liftEdges)
-			scene.collider.liftEdges = true;
+		if (args.noLiftEdges)
+			scene.collider.liftEdges = false;
 		if (!args.show.empty())
 			scene.render.showEllipsoids = args.show == "ellipsoids";
 		for (const std::string* p : {&args.body, &args.ellipsoids})

@@ -107,6 +107,13 @@ private:
 		btAlignedObjectArray<unsigned char> m_escapeHints;
 		btAlignedObjectArray<int> m_skinMeshHints; ///< per node: its closest skin-mesh triangle last time, or -1
 		btAlignedObjectArray<unsigned char> m_lifted; ///< per node: a link lifted it in the last substep
+		/// Per link, where its midpoint was (body frame) when liftEdgesOffSkin last read the field there, and how far
+		/// above the edges' clearance it read (negative: no reading to reuse).
+		btAlignedObjectArray<btVector3> m_edgeMid;
+		btAlignedObjectArray<btScalar> m_edgeSlack;
+		int m_edgeRevision;      ///< the compound's analytic revision those readings were taken at
+		btScalar m_edgeClearance; ///< and the clearance they were measured against
+		ContactRecord() : m_softBody(0), m_current(false), m_edgeRevision(-1), m_edgeClearance(0) {}
 	};
 
 	btEllipsoidCompoundShape* m_ownedCompound;

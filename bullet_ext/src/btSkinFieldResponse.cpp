@@ -325,12 +325,31 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
 	const btScalar maxMove = btScalar(2) * geometry.offset() / field.getLipschitz();
 	const btScalar floor = geometry.offset() - geometry.tolerance();
 	btSoftBody::Node* base = &softBody->m_nodes[0];
+	ContactRecord* record = 0;
+	for (int r = 0; r < m_contactRecords.size() && !record; ++r)
+		if (m_contactRecords[r].m_softBody == softBody)
+			record = &m_contactRecords[r];
+	btAssert(record); // collide() began it
+	const int numLinks = softBody->m_links.size();
+	record->m_edgeMid.resize(numLinks);
+	record->m_edgeSlack.resize(numLinks, btScalar(-1));
+	if (record->m_edgeRevision != m_compound->getAnalyticRevision() || record->m_edgeClearance != clearance)
+	{
+		// Another field or clearance: no reading is reusable.
+		for (int l = 0; l < numLinks; ++l)
+			record->m_edgeSlack[l] = btScalar(-1);
+		record->m_edgeRevision = m_compound->getAnalyticRevision();
+		record->m_edgeClearance = clearance;
+	}
+	btVector3* lastMid = numLinks > 0 ? &record->m_edgeMid[0] : 0;
+	btScalar* slack = numLinks > 0 ? &record->m_edgeSlack[0] : 0;
+	const btScalar lipschitz = field.getLipschitz();
 	m_edgeLift.resize(numNodes);
 	m_edgeLiftSize.resize(numNodes);
 	for (int i = 0; i < numNodes; ++i)
 		m_edgeLiftSize[i] = btScalar(0);
 	bool any = false;
-	for (int l = 0; l < softBody->m_links.size(); ++l)
+	for (int l = 0; l < numLinks; ++l)
 	{
 		const btSoftBody::Link& link = softBody->m_links[l];
 		if (link.m_bbending)
@@ -350,7 +369,14 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
 		if ((xb - xa).length2() > btScalar(2.25) * link.m_rl * link.m_rl)
 			continue;
 		const btVector3 mid = geometry.toBody() * ((xa + xb) * btScalar(0.5));
-		if (field.distance(mid) >= clearance)
+		// The field is L-Lipschitz (up to its seam, which the slack keeps): a midpoint that read `slack` above the
+		// clearance and has since moved less than slack / L still reads above it.
+		if (slack[l] > btScalar(0) && (mid - lastMid[l]).length2() * lipschitz * lipschitz < slack[l] * slack[l])
+			continue;
+		const btScalar fMid = field.distance(mid);
+		lastMid[l] = mid;
+		slack[l] = fMid - clearance - geometry.margin();
+		if (fMid >= clearance)
 			continue;
 		btVector3 g;
 		const btScalar f = field.distanceAndGradient(mid, g);

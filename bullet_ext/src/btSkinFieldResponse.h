@@ -45,6 +45,7 @@ public:
 	void begin(const btSkinDistanceField* field, btScalar offset, const btTransform& bodyToWorld);
 	const btSkinDistanceField* field() const { return m_field; }
 	btScalar offset() const { return m_offset; }
+	btScalar margin() const { return m_margin; }
 	btScalar tolerance() const { return m_tolerance; }
 	const btTransform& toBody() const { return m_toBody; }
 	const btTransform& toWorld() const { return m_toWorld; }

@@ -27,7 +27,7 @@ json validDocument()
 		"body": {"mesh": "MESH", "fit": {"mu_torso": 0.01}, "up": "y", "scale": 1.0},
 		"collider": {"kind": "mesh-bvh", "skin_offset_m": 0.003, "sdf_voxel_m": 0.03, "shape_margin_m": 0.002,
 					 "contact_hardness": 0.8, "surface": "ellipsoids", "skin_mesh": true,
-					 "lift_edges": true},
+					 "lift_edges": false},
 		"garment": {"type": "patch", "size_m": [1.2, 0.8], "resolution": [21, 11], "center": [0, 1.5, 0.1]},
 		"material": {"stretch": 0.7, "bending": 0.1, "damping": 0.05, "mass_kg": 0.4, "margin_m": 0.006},
 		"solver": {"dt": 0.01, "substeps": 2, "iterations": 12, "steps": 50},
@@ -77,7 +77,7 @@ TEST_CASE("a scene with every section parses to the given values", "[scene]")
 	CHECK(s.collider.contactHardness == 0.8);
 	CHECK_FALSE(s.collider.tightSurface);
 	CHECK(s.collider.skinMesh);
-	CHECK(s.collider.liftEdges);
+	CHECK_FALSE(s.collider.liftEdges);
 	CHECK(s.garment.type == GarmentType::Patch);
 	CHECK(s.garment.resolution == Eigen::Vector2i(21, 11));
 	CHECK(s.garment.size == Eigen::Vector2d(1.2, 0.8));

@@ -44,37 +44,53 @@ TEST_CASE("bundled scenes: a short run has no NaN and no node inside an ellipsoi
 			CHECK(m["max_ellipsoid_penetration_m"].get<double>() < 1e-6);
 		// The union rule is reported beside the collider's contacts.
 		CHECK(m.contains("nodes_near_union"));
-		// Issue 14's goal for cloth on the skin (static bodies; an animated body keeps the ellipsoids): the nodes the
-		// collider touched in its last substep are placed at the skin offset on the field, whose error where these
-		// garments rest is a fraction of a millimetre; mean <= offset + 1 mm, p95 <= offset + 3 mm.
+		// Cloth on the skin (static bodies; an animated body keeps the ellipsoids). The nodes the collider touched in
+		// its last substep rest at the skin offset on the field (error a fraction of a millimetre where these garments
+		// rest), or, lifted by edges that sag over curved skin (collider.lift_edges, the default), higher by that sag
+		// less half the offset: the bundled garments' 3-10 cm edges over hips, legs and shoulders sag up to ~6 mm
+		// (measured at full length: mean 3.1-3.6 mm, p95 4.4-7.0 mm). Bounds: mean <= offset + 2 mm, p95 <= offset +
+		// 6 mm; issue 14's offset + 1 / + 3 mm are checked without the lift in the next test case.
 		if (tight && !body.animation && m["contact_nodes"].get<int>() > 0)
 		{
-			CHECK(m["mean_contact_gap_m"].get<double>() <= scene.collider.skinOffset + 0.001);
-			CHECK(m["p95_contact_gap_m"].get<double>() <= scene.collider.skinOffset + 0.003);
+			CHECK(m["mean_contact_gap_m"].get<double>() <= scene.collider.skinOffset + 0.002);
+			CHECK(m["p95_contact_gap_m"].get<double>() <= scene.collider.skinOffset + 0.006);
 		}
 	}
 }
 
-TEST_CASE("bundled skirt drop: lifting edges takes them off the skin and keeps every node outside", "[scene][runs][edges]")
+TEST_CASE("bundled static scenes: lifted edges clear the skin; without the lift nodes rest at the offset",
+		  "[scene][runs][edges]")
 {
-	// The skirt's edges are 4-10 cm long; over the hips their sag between nodes resting at the 2 mm offset cuts into
-	// the skin. Config::m_liftEdges lifts them; the edges crossing the skin (measured against the body mesh, bending
-	// links excluded) must fall to at most a fifth (measured 2026-12-04: 51 -> 5 of 2,088), nodes never inside.
-	Scene scene = loadScene(std::string(BODYFIT_SCENE_DIR) + "/skirt_drop.json");
-	scene.collider.kind = ColliderKind::Ellipsoids;
-	scene.sampleEvery = 5;
-	const BodyData body = loadBody(scene);
-	int crossing[2] = {0, 0};
-	for (const bool lift : {false, true})
+	// The garments' edges are 3-10 cm long; over hips, legs and shoulders their sag between nodes resting at the
+	// 2 mm offset cuts into the skin. The lift (default) takes them off it. Measured at full length on 2026-12-04
+	// (edges crossing the skin against the body mesh, bending links excluded, without -> with the lift): skirt drop
+	// 51 -> 4 of 2,088, tights 542 -> 59 of 7,975, tablecloth 37 -> 8, windy patch 32 -> 2. Here 120 steps (the
+	// garments have settled) of the two skirts and the tights: with the lift at most a fifth of the crossings without.
+	for (const char* name : {"skirt_drop", "walking_skirt", "tights_settle"})
 	{
-		INFO((lift ? "collider.lift_edges" : "default"));
-		scene.collider.liftEdges = lift;
-		DrapeSimulation sim(scene, body);
-		const nlohmann::json m = runAndMeasure(sim, scene.solver.steps);
-		CHECK(m["max_nodes_inside_body"] == 0);
-		CHECK(m["max_nan_nodes"] == 0);
-		crossing[lift] = m["links_crossing_body"].get<int>();
+		Scene scene = loadScene(std::string(BODYFIT_SCENE_DIR) + "/" + name + ".json");
+		scene.collider.kind = ColliderKind::Ellipsoids;
+		scene.sampleEvery = 5;
+		const BodyData body = loadBody(scene);
+		int crossing[2] = {0, 0};
+		for (const bool lift : {false, true})
+		{
+			INFO(name << (lift ? ", edges lifted" : ", collider.lift_edges false"));
+			scene.collider.liftEdges = lift;
+			DrapeSimulation sim(scene, body);
+			const nlohmann::json m = runAndMeasure(sim, 120);
+			CHECK(m["max_nodes_inside_body"] == 0);
+			CHECK(m["max_nan_nodes"] == 0);
+			crossing[lift] = m["links_crossing_body"].get<int>();
+			// Without the lift, issue 14's goal for cloth on the skin: the touched nodes rest at the skin offset on the
+			// field; mean <= offset + 1 mm, p95 <= offset + 3 mm.
+			if (!lift)
+			{
+				CHECK(m["mean_contact_gap_m"].get<double>() <= scene.collider.skinOffset + 0.001);
+				CHECK(m["p95_contact_gap_m"].get<double>() <= scene.collider.skinOffset + 0.003);
+			}
+		}
+		CHECK(crossing[0] >= 20); // the sag this is about shows without the lift (49-542 measured at full length)
+		CHECK(crossing[1] * 5 <= crossing[0]);
 	}
-	CHECK(crossing[0] >= 20); // the default run shows the sag this is about (51 measured)
-	CHECK(crossing[1] * 5 <= crossing[0]);
 }

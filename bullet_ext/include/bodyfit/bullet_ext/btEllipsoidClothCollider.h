@@ -138,8 +138,9 @@ public:
 		/// offset of the skin is lifted off it along the field's gradient (its nodes moved, split by inverse mass, at
 		/// most 2 offset / L, and only to points at the skin offset or more), so cloth faces do not cut into the skin
 		/// between nodes. Nodes then rest where their edges clear the skin: on skin curved under an edge, higher than
-		/// the offset (by the edge's sag, about L^2 / 8R for an edge of length L on skin of radius R). Default false:
-		/// nodes rest at the offset, and edges longer than about sqrt(8 R offset) sag into the skin between them.
+		/// the offset (by the edge's sag, about L^2 / 8R for an edge of length L on skin of radius R, less half the
+		/// offset). Default true; false keeps nodes at the offset, and edges longer than about sqrt(8 R offset) then
+		/// sag into the skin between them.
 		bool m_liftEdges;
 
 		Config()
@@ -149,7 +150,7 @@ public:
 			  m_disableBulletResponse(true),
 			  m_applyReactionToBody(true),
 			  m_surface(TIGHT_SKIN),
-			  m_liftEdges(false)
+			  m_liftEdges(true)
 		{
 		}
 	};

@@ -86,8 +86,8 @@ struct ColliderSpec
 	/// (btSkinnedBodyDriver::setSkinMeshEnabled; default false, see its cost and limit there).
 	bool skinMesh = false;
 	/// ellipsoids, tight surface, body at rest or moving rigidly: lift cloth edges off the skin (Config::m_liftEdges;
-	/// default false here and there: nodes rest at the skin offset, and long edges over curved skin sag into it).
-	bool liftEdges = false;
+	/// default true; false keeps nodes at the skin offset, and long edges over curved skin then sag into it).
+	bool liftEdges = true;
 };
 
 enum class GarmentType
