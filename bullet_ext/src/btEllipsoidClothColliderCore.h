@@ -107,13 +107,30 @@ private:
 		btAlignedObjectArray<unsigned char> m_escapeHints;
 		btAlignedObjectArray<int> m_skinMeshHints; ///< per node: its closest skin-mesh triangle last time, or -1
 		btAlignedObjectArray<unsigned char> m_lifted; ///< per node: a link lifted it in the last substep
-		/// Per link, where its midpoint was (body frame) when liftEdgesOffSkin last read the field there, and how far
-		/// above the edges' clearance it read (negative: no reading to reuse).
+		/// The cloth's edges for liftEdgesOffSkin: per edge (a link that is not a bending link) its two nodes and its
+		/// link, listed again when the soft body's link or node array changes size or place.
+		btAlignedObjectArray<int> m_edgeEnds;
+		btAlignedObjectArray<int> m_edgeLinks;
+		btAlignedObjectArray<int> m_nodeEdgeStart; ///< per node, where its edges start in m_nodeEdges (one more entry)
+		btAlignedObjectArray<int> m_nodeEdges;     ///< the edges at each node, node after node
+		const void* m_edgeLinkData;
+		const void* m_edgeNodeData;
+		int m_edgeLinkCount;
+		int m_edgeNodeCount;
+		/// Per edge, where its midpoint was (world frame, the body still since) when liftEdgesOffSkin last read the
+		/// field there, and the square of how far it may move before that reading no longer proves it clear (the
+		/// reading above the edges' clearance over the field's Lipschitz bound; negative: no reading to reuse).
 		btAlignedObjectArray<btVector3> m_edgeMid;
 		btAlignedObjectArray<btScalar> m_edgeSlack;
 		int m_edgeRevision;      ///< the compound's analytic revision those readings were taken at
 		btScalar m_edgeClearance; ///< and the clearance they were measured against
-		ContactRecord() : m_softBody(0), m_current(false), m_edgeRevision(-1), m_edgeClearance(0) {}
+		ContactRecord()
+			: m_softBody(0), m_current(false), m_edgeLinkData(0), m_edgeNodeData(0), m_edgeLinkCount(-1),
+			  m_edgeNodeCount(-1), m_edgeRevision(-1), m_edgeClearance(0)
+		{
+		}
+		/// Lists the soft body's edges again if its links or nodes changed (size or place); true if it did.
+		bool listEdges(const btSoftBody& softBody);
 	};
 
 	btEllipsoidCompoundShape* m_ownedCompound;
@@ -153,7 +170,9 @@ private:
 	unsigned char* m_liftedNodes;              ///< that soft body's lifted-node marks (0 outside collide())
 	const btSoftBody::Node* m_contactNodeBase; ///< node 0 of that soft body
 	btAlignedObjectArray<btVector3> m_edgeLift;    ///< liftEdgesOffSkin: per node, the largest rise its edges ask
-	btAlignedObjectArray<btScalar> m_edgeLiftSize; ///< ... and its length (0: none)
+	btAlignedObjectArray<btScalar> m_edgeLiftSize; ///< ... and its length (0: none; 0 for every node between calls)
+	btAlignedObjectArray<int> m_edgeActive;        ///< liftEdgesOffSkin: nodes in contact or lifted in the last substep
+	btAlignedObjectArray<int> m_edgeRaised;        ///< liftEdgesOffSkin: nodes some edge asked to rise
 
 	/// The soft body's record, cleared and sized to its nodes, marked current; m_contactFlags points into it.
 	void beginContactRecord(const btSoftBody* softBody);
@@ -243,6 +262,10 @@ private:
 	/// its nodes to rise along the field's gradient there, split by inverse mass; each node takes the largest rise its
 	/// edges ask (capped at 2 offset / L), only between points at the skin offset or more.
 	void liftEdgesOffSkin(btSoftBody* softBody);
+	/// One edge (link `link`, nodes ia, ib) of liftEdgesOffSkin: its midpoint read on the field unless the last
+	/// reading (lastMid, reach2) still holds; below the clearance, each node's rise (m_edgeLift) raised to what it asks.
+	void liftEdge(btSoftBody* softBody, int link, int ia, int ib, btVector3& lastMid, btScalar& reach2,
+				  btScalar clearance, btScalar maxMove, btScalar lipschitz);
 	/// The field geometry collideOnSkin works with (m_skinGroup).
 	const btSkinFieldGeometry& skinGeometry() const
 	{

@@ -15,6 +15,8 @@ along the field's gradient (Newton), and the existing velocity rule and friction
 #include "BulletDynamics/Dynamics/btRigidBody.h"
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 namespace
 {
@@ -310,12 +312,67 @@ bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const b
 	return stopped;
 }
 
+bool btEllipsoidClothColliderCore::ContactRecord::listEdges(const btSoftBody& softBody)
+{
+	const int numLinks = softBody.m_links.size(), numNodes = softBody.m_nodes.size();
+	const void* linkData = numLinks > 0 ? &softBody.m_links[0] : 0;
+	const void* nodeData = numNodes > 0 ? &softBody.m_nodes[0] : 0;
+	if (numLinks == m_edgeLinkCount && numNodes == m_edgeNodeCount && linkData == m_edgeLinkData &&
+		nodeData == m_edgeNodeData)
+		return false;
+	m_edgeLinkCount = numLinks;
+	m_edgeNodeCount = numNodes;
+	m_edgeLinkData = linkData;
+	m_edgeNodeData = nodeData;
+	m_edgeEnds.resize(0);
+	m_edgeLinks.resize(0);
+	const btSoftBody::Node* base = static_cast<const btSoftBody::Node*>(nodeData);
+	for (int l = 0; l < numLinks; ++l)
+	{
+		const btSoftBody::Link& link = softBody.m_links[l];
+		if (link.m_bbending)
+			continue; // a spring between the far corners of two faces, not an edge of the cloth
+		m_edgeEnds.push_back(int(link.m_n[0] - base));
+		m_edgeEnds.push_back(int(link.m_n[1] - base));
+		m_edgeLinks.push_back(l);
+	}
+	m_edgeMid.resize(m_edgeLinks.size());
+	m_edgeSlack.resize(m_edgeLinks.size());
+	// The edges at each node (counting sort by node).
+	m_nodeEdgeStart.resize(numNodes + 1);
+	for (int i = 0; i <= numNodes; ++i)
+		m_nodeEdgeStart[i] = 0;
+	for (int k = 0; k < m_edgeEnds.size(); ++k)
+		++m_nodeEdgeStart[m_edgeEnds[k] + 1];
+	for (int i = 0; i < numNodes; ++i)
+		m_nodeEdgeStart[i + 1] += m_nodeEdgeStart[i];
+	m_nodeEdges.resize(m_edgeEnds.size());
+	btAlignedObjectArray<int> fill;
+	fill.resize(numNodes);
+	for (int i = 0; i < numNodes; ++i)
+		fill[i] = m_nodeEdgeStart[i];
+	for (int k = 0; k < m_edgeEnds.size(); ++k)
+		m_nodeEdges[fill[m_edgeEnds[k]]++] = k / 2;
+	return true;
+}
+
+namespace
+{
+/// Eight flag bytes as one word (memcpy: no alignment or aliasing assumption).
+inline std::uint64_t readWord(const unsigned char* p)
+{
+	std::uint64_t w;
+	std::memcpy(&w, p, sizeof(w));
+	return w;
+}
+} // namespace
+
 void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
 {
 	const btSkinFieldGeometry& geometry = m_skinGeometry;
 	const btSkinDistanceField& field = *geometry.field();
-	// Edges clear the skin by half the skin offset: a link at the offset on a flat skin is untouched, and the lift
-	// raises its nodes only by what the link's sag over a curved skin takes below that.
+	// Edges clear the skin by half the skin offset: an edge at the offset on a flat skin is untouched, and the lift
+	// raises its nodes only by what the edge's sag over a curved skin takes below that.
 	const btScalar clearance = btScalar(0.5) * geometry.offset();
 	const int numNodes = softBody->m_nodes.size();
 	if (!(clearance > btScalar(0)) || numNodes == 0)
@@ -324,92 +381,121 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
 	// (each point of the move is within offset / L of an end): the lifted node's path stays outside the skin.
 	const btScalar maxMove = btScalar(2) * geometry.offset() / field.getLipschitz();
 	const btScalar floor = geometry.offset() - geometry.tolerance();
-	btSoftBody::Node* base = &softBody->m_nodes[0];
 	ContactRecord* record = 0;
 	for (int r = 0; r < m_contactRecords.size() && !record; ++r)
 		if (m_contactRecords[r].m_softBody == softBody)
 			record = &m_contactRecords[r];
 	btAssert(record); // collide() began it
-	const int numLinks = softBody->m_links.size();
-	record->m_edgeMid.resize(numLinks);
-	record->m_edgeSlack.resize(numLinks, btScalar(-1));
-	if (record->m_edgeRevision != m_compound->getAnalyticRevision() || record->m_edgeClearance != clearance)
+	const bool relisted = record->listEdges(*softBody);
+	const int numEdges = record->m_edgeLinks.size();
+	if (relisted || m_moving || record->m_edgeRevision != m_compound->getAnalyticRevision() ||
+		record->m_edgeClearance != clearance)
 	{
-		// Another field or clearance: no reading is reusable.
-		for (int l = 0; l < numLinks; ++l)
-			record->m_edgeSlack[l] = btScalar(-1);
+		// Other edges, another field, another clearance, or the body moved: no reading is reusable.
+		for (int e = 0; e < numEdges; ++e)
+			record->m_edgeSlack[e] = btScalar(-1);
 		record->m_edgeRevision = m_compound->getAnalyticRevision();
 		record->m_edgeClearance = clearance;
 	}
-	btVector3* lastMid = numLinks > 0 ? &record->m_edgeMid[0] : 0;
-	btScalar* slack = numLinks > 0 ? &record->m_edgeSlack[0] : 0;
+	const int* ends = numEdges > 0 ? &record->m_edgeEnds[0] : 0;
+	const int* edgeStart = &record->m_nodeEdgeStart[0];
+	const int* nodeEdges = numEdges > 0 ? &record->m_nodeEdges[0] : 0;
+	btVector3* lastMid = numEdges > 0 ? &record->m_edgeMid[0] : 0;
+	btScalar* slack = numEdges > 0 ? &record->m_edgeSlack[0] : 0;
 	const btScalar lipschitz = field.getLipschitz();
 	m_edgeLift.resize(numNodes);
-	m_edgeLiftSize.resize(numNodes);
-	for (int i = 0; i < numNodes; ++i)
-		m_edgeLiftSize[i] = btScalar(0);
-	bool any = false;
-	for (int l = 0; l < numLinks; ++l)
+	m_edgeLiftSize.resize(numNodes, btScalar(0));
+	// The nodes whose edges are looked at: in contact this substep, or lifted in the last (a lifted node rests above
+	// the offset, where its own path no longer meets the surface).
+	m_edgeActive.resize(0);
+	for (int i = 0; i < numNodes;)
 	{
-		const btSoftBody::Link& link = softBody->m_links[l];
-		if (link.m_bbending)
-			continue; // a bending link is a spring across two faces, not an edge of the cloth
-		const int ia = int(link.m_n[0] - base), ib = int(link.m_n[1] - base);
-		// Links at a node in contact this substep, or lifted in the last (a lifted node rests above the offset, where
-		// its own path no longer meets the surface).
-		if (!(m_contactFlags[ia] | m_contactFlags[ib] | m_liftedNodes[ia] | m_liftedNodes[ib]))
-			continue;
-		const btScalar wa = base[ia].m_im, wb = base[ib].m_im;
-		if (!(wa + wb > btScalar(0)))
-			continue;
-		const btVector3& xa = base[ia].m_x;
-		const btVector3& xb = base[ib].m_x;
-		// A link stretched past 1.5x its rest length spans something (a limb between nodes on both sides): a lift
-		// at its middle cannot free it without pushing a node into the body.
-		if ((xb - xa).length2() > btScalar(2.25) * link.m_rl * link.m_rl)
-			continue;
-		const btVector3 mid = geometry.toBody() * ((xa + xb) * btScalar(0.5));
-		// The field is L-Lipschitz (up to its seam, which the slack keeps): a midpoint that read `slack` above the
-		// clearance and has since moved less than slack / L still reads above it.
-		if (slack[l] > btScalar(0) && (mid - lastMid[l]).length2() * lipschitz * lipschitz < slack[l] * slack[l])
-			continue;
-		const btScalar fMid = field.distance(mid);
-		lastMid[l] = mid;
-		slack[l] = fMid - clearance - geometry.margin();
-		if (fMid >= clearance)
-			continue;
-		btVector3 g;
-		const btScalar f = field.distanceAndGradient(mid, g);
-		const btScalar slope = g.length();
-		if (!(slope > btScalar(0.1)))
-			continue;
-		const btScalar lift = (clearance - f) / slope;
-		const btVector3 n = geometry.toWorld().getBasis() * (g / slope);
-		const int ends[2] = {ia, ib};
-		const btScalar shares[2] = {btScalar(2) * wa / (wa + wb), btScalar(2) * wb / (wa + wb)};
-		for (int k = 0; k < 2; ++k)
+		if (i + 8 <= numNodes && !(readWord(m_contactFlags + i) | readWord(m_liftedNodes + i)))
 		{
-			const btScalar move = btMin(lift * shares[k], maxMove);
-			if (move > m_edgeLiftSize[ends[k]])
-			{
-				m_edgeLiftSize[ends[k]] = move;
-				m_edgeLift[ends[k]] = n * move;
-				any = true;
-			}
+			i += 8; // most of a cloth touches nothing: eight nodes at a time
+			continue;
+		}
+		if (m_contactFlags[i] | m_liftedNodes[i])
+			m_edgeActive.push_back(i);
+		++i;
+	}
+	m_edgeRaised.resize(0);
+	for (int k = 0; k < m_edgeActive.size(); ++k)
+	{
+		const int i = m_edgeActive[k];
+		for (int s = edgeStart[i]; s < edgeStart[i + 1]; ++s)
+		{
+			const int e = nodeEdges[s];
+			const int j = ends[2 * e] == i ? ends[2 * e + 1] : ends[2 * e];
+			if (j < i && (m_contactFlags[j] | m_liftedNodes[j]))
+				continue; // looked at from j
+			liftEdge(softBody, record->m_edgeLinks[e], i, j, lastMid[e], slack[e], clearance, maxMove, lipschitz);
 		}
 	}
-	for (int i = 0; i < numNodes; ++i)
+	for (int k = 0; k < m_edgeActive.size(); ++k)
+		m_liftedNodes[m_edgeActive[k]] = 0;
+	btSoftBody::Node* base = &softBody->m_nodes[0];
+	for (int k = 0; k < m_edgeRaised.size(); ++k)
 	{
-		m_liftedNodes[i] = 0;
-		if (!any || !(m_edgeLiftSize[i] > btScalar(0)))
-			continue;
+		const int i = m_edgeRaised[k];
 		const btVector3 x = base[i].m_x + m_edgeLift[i];
+		m_edgeLiftSize[i] = btScalar(0);
 		if (field.distance(geometry.toBody() * x) < floor || field.distance(geometry.toBody() * base[i].m_x) < floor)
 			continue;
 		base[i].m_x = x;
 		m_liftedNodes[i] = 1;
 		m_contactFlags[i] = 1;
 		++m_lastStats.m_nodesLifted;
+	}
+}
+
+void btEllipsoidClothColliderCore::liftEdge(btSoftBody* softBody, int link, int ia, int ib, btVector3& lastMid,
+											btScalar& reach2, btScalar clearance, btScalar maxMove, btScalar lipschitz)
+{
+	const btSkinFieldGeometry& geometry = m_skinGeometry;
+	const btSkinDistanceField& field = *geometry.field();
+	const btSoftBody::Node* base = &softBody->m_nodes[0];
+	const btScalar wa = base[ia].m_im, wb = base[ib].m_im;
+	if (!(wa + wb > btScalar(0)))
+		return;
+	const btVector3& xa = base[ia].m_x;
+	const btVector3& xb = base[ib].m_x;
+	const btVector3 mid = (xa + xb) * btScalar(0.5);
+	// The field is L-Lipschitz (up to its seam, which the slack keeps): a midpoint that read `slack` above the
+	// clearance and has since moved less than slack / L (the body still) still reads above it.
+	if ((mid - lastMid).length2() < reach2)
+		return;
+	// An edge stretched past 1.5x its rest length spans something (a limb between nodes on both sides): a lift at
+	// its middle cannot free it without pushing a node into the body.
+	const btScalar rest = softBody->m_links[link].m_rl;
+	if ((xb - xa).length2() > btScalar(2.25) * rest * rest)
+		return;
+	const btVector3 midBody = geometry.toBody() * mid;
+	const btScalar fMid = field.distance(midBody);
+	const btScalar slack = fMid - clearance - geometry.margin();
+	lastMid = mid;
+	reach2 = slack > btScalar(0) ? slack * slack / (lipschitz * lipschitz) : btScalar(-1);
+	if (fMid >= clearance)
+		return;
+	btVector3 g;
+	const btScalar f = field.distanceAndGradient(midBody, g);
+	const btScalar slope = g.length();
+	if (!(slope > btScalar(0.1)))
+		return;
+	const btScalar lift = (clearance - f) / slope;
+	const btVector3 n = geometry.toWorld().getBasis() * (g / slope);
+	const int nodes[2] = {ia, ib};
+	const btScalar shares[2] = {btScalar(2) * wa / (wa + wb), btScalar(2) * wb / (wa + wb)};
+	for (int k = 0; k < 2; ++k)
+	{
+		const btScalar move = btMin(lift * shares[k], maxMove);
+		if (move > m_edgeLiftSize[nodes[k]])
+		{
+			if (m_edgeLiftSize[nodes[k]] == btScalar(0))
+				m_edgeRaised.push_back(nodes[k]);
+			m_edgeLiftSize[nodes[k]] = move;
+			m_edgeLift[nodes[k]] = n * move;
+		}
 	}
 }
 
