@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Runs every static bundled scene (full length) with the ellipsoid collider on both surfaces, tight (the skin field,
-# the default) and ellipsoids (the paper's response), and prints one row per scene and surface from the metrics JSON:
-# nodes inside the body (end / worst sample), contact nodes and their mean and p95 gap to the real skin (the nodes the
-# collider placed, held or pushed out in its last substep), the same for the nodes within skin offset + 3 mm of the
-# union or inside it (nodes_near_union, the rule before issue 14's contact flags), collision ms per step.
+# the default, with its edges lifted off the skin, and again without: tight-nolift, --no-lift-edges) and ellipsoids
+# (the paper's response), and prints one row per scene and surface from the metrics JSON: nodes inside the body (end /
+# worst sample), contact nodes and their mean and p95 gap to the real skin (the nodes the collider placed, held, pushed
+# out or lifted in its last substep), cloth edges crossing the skin at the end (bending links excluded) and the
+# deepest, the same gap for the nodes within skin offset + 3 mm of the union or inside it (nodes_near_union, the rule
+# before issue 14's contact flags), collision ms per step.
 # The same for the skirt and tights scenes on the bodies no bundled scene uses (UNSEEN, default male_young male_heavy
 # female_short), each with its own garment and fitted at load.
 # Usage: [UNSEEN="male_young ..."] tools/compare_surfaces.sh [BUILD_DIR] [OUT]
@@ -32,20 +34,21 @@ done
 for scene in demos/scenes/*.json "$OUT"/unseen/*.json; do
 	name=$(basename "$scene" .json)
 	case "$name" in animated_*) continue ;; esac # an animated body has no skin field (its skin moves)
-	for surface in tight ellipsoids; do
-		"$BUILD/demos/bodyfit-drape" "$scene" --surface "$surface" --metrics "$OUT/$name.$surface.json" >/dev/null
-	done
+	"$BUILD/demos/bodyfit-drape" "$scene" --surface tight --metrics "$OUT/$name.tight.json" >/dev/null
+	"$BUILD/demos/bodyfit-drape" "$scene" --surface tight --no-lift-edges --metrics "$OUT/$name.tight-nolift.json" >/dev/null
+	"$BUILD/demos/bodyfit-drape" "$scene" --surface ellipsoids --metrics "$OUT/$name.ellipsoids.json" >/dev/null
 done
 python3 - "$OUT" <<'PY'
 import json, pathlib, sys
 out = pathlib.Path(sys.argv[1])
-print("| scene | surface | inside end / worst | contact nodes | mean contact gap mm | p95 mm | near union: nodes | mean mm | p95 mm | collision ms/step |")
-print("|---|---|---|---|---|---|---|---|---|---|")
+print("| scene | surface | inside end / worst | contact nodes | mean contact gap mm | p95 mm | edges crossing the skin | deepest mm | near union: nodes | mean mm | p95 mm | collision ms/step |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|")
 for f in sorted(out.glob("*.json")):
     name, surface = f.stem.rsplit(".", 1)
     m = json.loads(f.read_text())
     mm = lambda k: "%.1f" % (1e3 * m[k]) if m.get(k) is not None else "-"
-    print("| %s | %s | %d / %d | %d | %s | %s | %d | %s | %s | %.3f |" % (name, surface, m["nodes_inside_body"],
-          m["max_nodes_inside_body"], m["contact_nodes"], mm("mean_contact_gap_m"), mm("p95_contact_gap_m"),
+    print("| %s | %s | %d / %d | %d | %s | %s | %d of %d | %s | %d | %s | %s | %.3f |" % (name, surface,
+          m["nodes_inside_body"], m["max_nodes_inside_body"], m["contact_nodes"], mm("mean_contact_gap_m"),
+          mm("p95_contact_gap_m"), m["links_crossing_body"], m["links"], mm("max_link_crossing_depth_m"),
           m["nodes_near_union"], mm("mean_near_union_gap_m"), mm("p95_near_union_gap_m"), m["collision_ms_per_step"]))
 PY
