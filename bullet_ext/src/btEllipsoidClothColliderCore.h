@@ -262,6 +262,12 @@ private:
 	/// its nodes to rise along the field's gradient there, split by inverse mass; each node takes the largest rise its
 	/// edges ask (capped at 2 offset / L), only between points at the skin offset or more.
 	void liftEdgesOffSkin(btSoftBody* softBody);
+	/// liftEdgesOffSkin's nodes whose edges are looked at (m_edgeActive): in contact this substep, or lifted in the
+	/// last (a lifted node rests above the offset, where its own path no longer meets the surface).
+	void listEdgeNodes(int numNodes);
+	/// liftEdgesOffSkin's last step: each node some edge asked to rise (m_edgeRaised) rises by the largest ask when it
+	/// is at field >= floor and would be there after (else it stays); lifted nodes are marked and flagged as contacts.
+	void raiseEdgeNodes(btSoftBody* softBody, btScalar floor);
 	/// One edge (link `link`, nodes ia, ib) of liftEdgesOffSkin: its midpoint read on the field unless the last
 	/// reading (lastMid, reach2) still holds; below the clearance, each node's rise (m_edgeLift) raised to what it asks.
 	void liftEdge(btSoftBody* softBody, int link, int ia, int ib, btVector3& lastMid, btScalar& reach2,

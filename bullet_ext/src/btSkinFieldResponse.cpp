@@ -405,20 +405,7 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
 	const btScalar lipschitz = field.getLipschitz();
 	m_edgeLift.resize(numNodes);
 	m_edgeLiftSize.resize(numNodes, btScalar(0));
-	// The nodes whose edges are looked at: in contact this substep, or lifted in the last (a lifted node rests above
-	// the offset, where its own path no longer meets the surface).
-	m_edgeActive.resize(0);
-	for (int i = 0; i < numNodes;)
-	{
-		if (i + 8 <= numNodes && !(readWord(m_contactFlags + i) | readWord(m_liftedNodes + i)))
-		{
-			i += 8; // most of a cloth touches nothing: eight nodes at a time
-			continue;
-		}
-		if (m_contactFlags[i] | m_liftedNodes[i])
-			m_edgeActive.push_back(i);
-		++i;
-	}
+	listEdgeNodes(numNodes);
 	m_edgeRaised.resize(0);
 	for (int k = 0; k < m_edgeActive.size(); ++k)
 	{
@@ -434,6 +421,29 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
 	}
 	for (int k = 0; k < m_edgeActive.size(); ++k)
 		m_liftedNodes[m_edgeActive[k]] = 0;
+	raiseEdgeNodes(softBody, floor);
+}
+
+void btEllipsoidClothColliderCore::listEdgeNodes(int numNodes)
+{
+	m_edgeActive.resize(0);
+	for (int i = 0; i < numNodes;)
+	{
+		if (i + 8 <= numNodes && !(readWord(m_contactFlags + i) | readWord(m_liftedNodes + i)))
+		{
+			i += 8; // most of a cloth touches nothing: eight nodes at a time
+			continue;
+		}
+		if (m_contactFlags[i] | m_liftedNodes[i])
+			m_edgeActive.push_back(i);
+		++i;
+	}
+}
+
+void btEllipsoidClothColliderCore::raiseEdgeNodes(btSoftBody* softBody, btScalar floor)
+{
+	const btSkinFieldGeometry& geometry = m_skinGeometry;
+	const btSkinDistanceField& field = *geometry.field();
 	btSoftBody::Node* base = &softBody->m_nodes[0];
 	for (int k = 0; k < m_edgeRaised.size(); ++k)
 	{
