@@ -190,6 +190,24 @@ TEST_CASE("tight mode: the surface mode, its default and local scaling", "[bulle
 namespace
 {
 
+/// Drops a 0.3 m patch of `resolution` x `resolution` nodes from just above the sphere body and runs 2 s (120 steps of
+/// 1/60 s) with `config`; `minDistance` gets the smallest analytic distance of any node to the skin after any step, and
+/// `atEnd(scene, cloth)` sees the final state.
+template <class AtEnd>
+void settleOnSphere(const btEllipsoidClothCollider::Config& config, int resolution, double& minDistance, AtEnd atEnd)
+{
+	ClothScene scene(sphereUnionWithField());
+	REQUIRE(scene.install(config) != nullptr);
+	btSoftBody* cloth = scene.addPatch(btVector3(0, btScalar(0.125), 0), btScalar(0.3), resolution);
+	for (int step = 0; step < 120; ++step)
+	{
+		scene.step(btScalar(1.0 / 60));
+		for (int i = 0; i < cloth->m_nodes.size(); ++i)
+			minDistance = std::min(minDistance, sphereBody(toE(cloth->m_nodes[i].m_x)));
+	}
+	atEnd(scene, cloth);
+}
+
 /// Drops a 0.3 m patch (21 x 21) on the sphere body for 2 s; returns the analytic distances of the nodes in the top
 /// cap (within 30 degrees of +y: the part of the cloth that rests on the sphere) and the smallest distance overall.
 struct DropResult
@@ -204,31 +222,24 @@ struct DropResult
 
 DropResult dropOnSphere(btEllipsoidClothCollider::SurfaceMode mode)
 {
-	ClothScene scene(sphereUnionWithField());
 	btEllipsoidClothCollider::Config config;
 	config.m_surface = mode;
-	REQUIRE(scene.install(config) != nullptr);
-	btSoftBody* cloth = scene.addPatch(btVector3(0, btScalar(0.125), 0), btScalar(0.3), 21);
 	DropResult out;
-	for (int step = 0; step < 120; ++step)
-	{
-		scene.step(btScalar(1.0 / 60));
+	settleOnSphere(config, 21, out.minDistance, [&](ClothScene& scene, btSoftBody* cloth) {
 		for (int i = 0; i < cloth->m_nodes.size(); ++i)
-			out.minDistance = std::min(out.minDistance, sphereBody(toE(cloth->m_nodes[i].m_x)));
-	}
-	for (int i = 0; i < cloth->m_nodes.size(); ++i)
-	{
-		const Eigen::Vector3d p = toE(cloth->m_nodes[i].m_x);
-		const bool cap = p.normalized().y() > std::cos(M_PI / 6);
-		if (cap)
-			out.capDistances.push_back(sphereBody(p));
-		out.distances.push_back(sphereBody(p));
-		out.inCap.push_back(cap);
-	}
-	out.stats = scene.collider()->getAccumulatedStats();
-	if (const btAlignedObjectArray<unsigned char>* flags = scene.collider()->getContactFlags(cloth))
-		for (int i = 0; i < flags->size(); ++i)
-			out.flags.push_back((*flags)[i]);
+		{
+			const Eigen::Vector3d p = toE(cloth->m_nodes[i].m_x);
+			const bool cap = p.normalized().y() > std::cos(M_PI / 6);
+			if (cap)
+				out.capDistances.push_back(sphereBody(p));
+			out.distances.push_back(sphereBody(p));
+			out.inCap.push_back(cap);
+		}
+		out.stats = scene.collider()->getAccumulatedStats();
+		if (const btAlignedObjectArray<unsigned char>* flags = scene.collider()->getContactFlags(cloth))
+			for (int i = 0; i < flags->size(); ++i)
+				out.flags.push_back((*flags)[i]);
+	});
 	return out;
 }
 
@@ -276,34 +287,27 @@ struct CoarseDrop
 
 CoarseDrop dropCoarseOnSphere(bool liftEdges)
 {
-	ClothScene scene(sphereUnionWithField());
 	btEllipsoidClothCollider::Config config;
 	config.m_liftEdges = liftEdges;
-	REQUIRE(scene.install(config) != nullptr);
-	btSoftBody* cloth = scene.addPatch(btVector3(0, btScalar(0.125), 0), btScalar(0.3), 7);
 	CoarseDrop out;
-	for (int step = 0; step < 120; ++step)
-	{
-		scene.step(btScalar(1.0 / 60));
+	settleOnSphere(config, 7, out.minNodeDistance, [&](ClothScene& scene, btSoftBody* cloth) {
+		for (int l = 0; l < cloth->m_links.size(); ++l)
+		{
+			const Eigen::Vector3d a = toE(cloth->m_links[l].m_n[0]->m_x), b = toE(cloth->m_links[l].m_n[1]->m_x);
+			if (cloth->m_links[l].m_bbending || sphereBody(a) > 0.01 || sphereBody(b) > 0.01)
+				continue;
+			++out.edgesTested;
+			for (int k = 1; k <= 9; ++k)
+				out.minEdgeDistance = std::min(out.minEdgeDistance, sphereBody(a + (b - a) * (k / 10.0)));
+		}
 		for (int i = 0; i < cloth->m_nodes.size(); ++i)
-			out.minNodeDistance = std::min(out.minNodeDistance, sphereBody(toE(cloth->m_nodes[i].m_x)));
-	}
-	for (int l = 0; l < cloth->m_links.size(); ++l)
-	{
-		const Eigen::Vector3d a = toE(cloth->m_links[l].m_n[0]->m_x), b = toE(cloth->m_links[l].m_n[1]->m_x);
-		if (cloth->m_links[l].m_bbending || sphereBody(a) > 0.01 || sphereBody(b) > 0.01)
-			continue;
-		++out.edgesTested;
-		for (int k = 1; k <= 9; ++k)
-			out.minEdgeDistance = std::min(out.minEdgeDistance, sphereBody(a + (b - a) * (k / 10.0)));
-	}
-	for (int i = 0; i < cloth->m_nodes.size(); ++i)
-	{
-		const Eigen::Vector3d p = toE(cloth->m_nodes[i].m_x);
-		if (p.normalized().y() > std::cos(M_PI / 6))
-			out.maxCapDistance = std::max(out.maxCapDistance, sphereBody(p));
-	}
-	out.nodesLifted = scene.collider()->getAccumulatedStats().m_nodesLifted;
+		{
+			const Eigen::Vector3d p = toE(cloth->m_nodes[i].m_x);
+			if (p.normalized().y() > std::cos(M_PI / 6))
+				out.maxCapDistance = std::max(out.maxCapDistance, sphereBody(p));
+		}
+		out.nodesLifted = scene.collider()->getAccumulatedStats().m_nodesLifted;
+	});
 	return out;
 }
 
