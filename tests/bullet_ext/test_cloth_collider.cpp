@@ -254,7 +254,7 @@ TEST_CASE("Figure 6 case 1: a node entering at the intersection gets one answer,
 	CHECK(double(results[0].y()) > std::sqrt(0.2 * 0.2 - 0.15 * 0.15));
 }
 
-TEST_CASE("Figure 6 case 2: projecting onto one ellipsoid would land inside the other; the earliest entry does not",
+TEST_CASE("Figure 6 case 2: projecting onto one ellipsoid would land inside the other, the earliest entry does not",
 		  "[bullet_ext][collider][figure6]")
 {
 	ClothScene scene(twoSpheres());
@@ -296,7 +296,7 @@ TEST_CASE("Figure 6 case 3: a fast node is not moved to the wrong side", "[bulle
 	}
 }
 
-TEST_CASE("nodes starting inside: at a centre, on a surface, at a triple intersection; no oscillation",
+TEST_CASE("nodes starting inside: at a centre, on a surface, at a triple intersection, no oscillation",
 		  "[bullet_ext][collider]")
 {
 	std::unique_ptr<btEllipsoidCompoundShape> s(new btEllipsoidCompoundShape());

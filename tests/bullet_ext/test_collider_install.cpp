@@ -102,7 +102,7 @@ TEST_CASE("install: worlds are checked by their virtual type, never dereferenced
 }
 
 #ifndef BT_DEBUG // debug builds assert on the removal (the ownership rule); release builds detach
-TEST_CASE("install: a body removed from the world detaches its collider; it may then be deleted", "[bullet_ext][collider][install]")
+TEST_CASE("install: a body removed from the world detaches its collider, which may then be deleted", "[bullet_ext][collider][install]")
 {
 	btEllipsoidClothWorld w;
 	w.getWorld()->setGravity(btVector3(0, btScalar(-9.81), 0));

@@ -51,7 +51,7 @@ TEST_CASE("gravity: listed makes the cloth fall, unlisted leaves soft gravity at
 	CHECK(fallen.col(1).mean() < start.col(1).mean() - 0.05);
 }
 
-TEST_CASE("wind: a steady +x wind pushes the cloth along +x; turbulence varies in space and time", "[effects]")
+TEST_CASE("wind: a steady +x wind pushes the cloth along +x, and turbulence varies in space and time", "[effects]")
 {
 	const BodyData body = sphereBody();
 	DrapeSimulation calm(patchScene(json::array({kGravity})), body);
@@ -87,7 +87,7 @@ TEST_CASE("wind: a steady +x wind pushes the cloth along +x; turbulence varies i
 	}
 }
 
-TEST_CASE("aerodynamics: drag slows a falling cloth; unlisted, Bullet's coefficients stay 0", "[effects]")
+TEST_CASE("aerodynamics: drag slows a falling cloth, and unlisted, Bullet's coefficients stay 0", "[effects]")
 {
 	const BodyData body = sphereBody();
 	DrapeSimulation plain(patchScene(json::array({kGravity}), 2.5), body);

@@ -58,7 +58,7 @@ TEST_CASE("bundled scenes: a short run has no NaN and no node inside an ellipsoi
 	}
 }
 
-TEST_CASE("bundled static scenes: lifted edges clear the skin; without the lift nodes rest at the offset",
+TEST_CASE("bundled static scenes: lifted edges clear the skin, and without the lift nodes rest at the offset",
 		  "[scene][runs][edges]")
 {
 	// The garments' edges are 3-10 cm long; over hips, legs and shoulders their sag between nodes resting at the
