@@ -31,7 +31,7 @@ struct Sample
 	double time = 0.0;
 	int inside = 0;
 	double gapMm = std::numeric_limits<double>::quiet_NaN(); ///< mean contact gap (NaN: no contact)
-	int crossing = 0; ///< cloth links crossing the skinned body (both ends outside): faces cutting into a limb
+	int crossing = 0; ///< cloth edges crossing the skinned body (both ends outside): faces cutting into a limb
 };
 
 /// Per-step costs (ms) and the samples of one run.
@@ -167,7 +167,7 @@ void plotSeries(const bodyfit_bench::Context& ctx, double bulletEnd)
 		  "set ylabel 'mean contact gap to the skin (mm)'\nset yrange [*:*]\n"
 		  "plot 'animated_series.csv' skip 1 using 2:4 with lines lw 2 lc rgb '#d62728' title 'ours', \\\n"
 		  "     '' skip 1 using 2:6 with linespoints pt 7 ps 0.5 lc rgb '#1f77b4' title 'Bullet (until the dashed line)'\n"
-		  "set ylabel 'cloth links crossing the skinned body'\nset yrange [0:*]\n"
+		  "set ylabel 'cloth edges crossing the skinned body'\nset yrange [0:*]\n"
 		  "plot 'animated_series.csv' skip 1 using 2:7 with lines lw 2 lc rgb '#d62728' title 'ours', \\\n"
 		  "     '' skip 1 using 2:8 with linespoints pt 7 ps 0.5 lc rgb '#1f77b4' title 'Bullet (until the dashed line)'\n"
 		  "unset multiplot";
@@ -227,7 +227,8 @@ BODYFIT_BENCH_SUITE_WITH_OPTIONS(animated,
 		  << " ms for the inside count (the skinned body's inside test rebuilt for the pose) and "
 		  << fmt(median(ours.front().contactMs), 1)
 		  << " ms for the contact gap (its distance grid rebuilt). Nodes inside: cloth nodes inside the skinned body mesh of the instant (ray-parity vote), "
-			 "largest over samples every 5 steps. Links crossing: cloth links with both ends outside the skinned body whose "
+			 "largest over samples every 5 steps. Links crossing: cloth edges (links that are not bending links) with both ends "
+			 "outside the skinned body whose "
 			 "segment passes through it (a face cutting into a limb between nodes), largest over the samples. Contact gap: mean signed distance to the skin of the nodes in contact "
 			 "(ours: the nodes the collider placed, held or pushed out in its last substep; Bullet: holding a rigid contact), averaged over the "
 			 "samples. Time series: animated_series.csv, animated.png.";

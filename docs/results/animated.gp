@@ -16,7 +16,7 @@ set ylabel 'mean contact gap to the skin (mm)'
 set yrange [*:*]
 plot 'animated_series.csv' skip 1 using 2:4 with lines lw 2 lc rgb '#d62728' title 'ours', \
      '' skip 1 using 2:6 with linespoints pt 7 ps 0.5 lc rgb '#1f77b4' title 'Bullet (until the dashed line)'
-set ylabel 'cloth links crossing the skinned body'
+set ylabel 'cloth edges crossing the skinned body'
 set yrange [0:*]
 plot 'animated_series.csv' skip 1 using 2:7 with lines lw 2 lc rgb '#d62728' title 'ours', \
      '' skip 1 using 2:8 with linespoints pt 7 ps 0.5 lc rgb '#1f77b4' title 'Bullet (until the dashed line)'
