@@ -727,7 +727,8 @@ btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, co
 {
 	// A node that starts within the skin goes back to its own clearance, not out to the full skin: pushed out by
 	// the skin every time its cloth's tension drew it onto the surface, resting cloth never came to rest.
-	const btScalar skin = btMin(substep.m_skin, btClearance(m_current[entry.m_ellipsoid], q));
+	const btScalar clearance = btClearance(m_current[entry.m_ellipsoid], q);
+	const btScalar skin = btMin(substep.m_skin, clearance);
 	btEntryPlacement placed;
 	btPlaceAtEntry(m_current, entry, substep.m_candidates, substep.m_tvals, nc, q, node.m_x, skin, placed);
 	btVector3 point;
@@ -747,7 +748,7 @@ btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, co
 	// held there would float ahead of it, so only a start within the contact band (a resting node) holds it.
 	if (respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, entry.m_ellipsoid, substep,
 						btScalar(1) - entry.m_t) &&
-		(!m_sweeping || btClearance(m_current[entry.m_ellipsoid], q) <= substep.m_band))
+		(!m_sweeping || clearance <= substep.m_band))
 	{
 		// Held by static friction (or moving straight in): the node stays where it started the substep, outside
 		// every candidate (the path test found q outside). The entry point lies down the path, and a node placed
