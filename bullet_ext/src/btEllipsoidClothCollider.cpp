@@ -708,9 +708,11 @@ void btEllipsoidClothColliderCore::leavePocket(btSoftBody::Node& node, const Sub
 	const btVector3& x = node.m_x;
 	if (x.x() < lo.x() || x.y() < lo.y() || x.z() < lo.z() || x.x() > hi.x() || x.y() > hi.y() || x.z() > hi.z())
 		return;
+	unsigned char* hint = m_escapeHints ? &m_escapeHints[&node - m_contactNodeBase] : 0;
+	if (hint && m_pushOut.escapesAlongHint(m_current, x, *hint))
+		return; // (the common case: the ray that left last time leaves again)
 	btPushOutResult out;
-	m_pushOut.leaveEnclosedPocket(m_current, x, substep.m_skin, out,
-								  m_escapeHints ? &m_escapeHints[&node - m_contactNodeBase] : 0);
+	m_pushOut.leaveEnclosedPocket(m_current, x, substep.m_skin, out, hint);
 	if (!out.m_moved)
 		return;
 	++m_lastStats.m_nodesPushedOut;
