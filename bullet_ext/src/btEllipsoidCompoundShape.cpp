@@ -637,11 +637,7 @@ void btEllipsoidWorldCache::buildGrid(bool animated)
 	m_invCell = btScalar(1) / cell;
 	m_gridOrigin = lo;
 	m_cellDilation = btScalar(kCellDilation);
-	// An animated compound's lists are rebuilt while it moves, and its queries rarely need the wide lists (a path
-	// box that leaves its grown cell): they are not built (the wide dilation equals the narrow one, so those paths
-	// walk the cells under them). On the walk skirt the builds took 58% fewer instructions, the 2% of the paths that
-	// walk instead 24 M more: 2.4% of the collider's instructions saved.
-	m_wideDilation = btScalar(animated ? kCellDilation : kWideCellDilation);
+	m_wideDilation = btScalar(kWideCellDilation);
 	for (int k = 0; k < 3; ++k)
 		m_dims[k] = btMax(1, btMin(int(kGridCellsLongestSide), int(size[k] * m_invCell) + 1));
 	// The lists of an animated compound hold each ellipsoid grown by its margin: E within `margin` of E_b meets a
@@ -787,26 +783,24 @@ void btEllipsoidWorldCache::buildLists()
 {
 	// A cell lists an ellipsoid if the ellipsoid may meet the cell grown by the dilation (and the ellipsoid's margin)
 	// on every side (GrownCellTest). One walk over each ellipsoid's wide range fills both lists: the narrow grown cell
-	// is tested only where its range holds the cell (an animated compound has no wide lists: its narrow range).
+	// is tested only where its range holds the cell.
 	const int n = m_shape->getNumEllipsoids();
 	const btScalar cell = m_cell;
 	const int cells = m_dims[0] * m_dims[1] * m_dims[2];
 	m_cellPairs.resize(0);
 	m_widePairs.resize(0);
-	const bool wideLists = m_wideDilation > m_cellDilation;
 	for (int i = 0; i < n; ++i)
 	{
 		const btEllipsoidLocalData& e = m_shape->getEllipsoid(i);
 		const btScalar margin = m_gridMargins.size() == n ? m_gridMargins[i] : btScalar(0);
 		const GrownCellTest narrow(e, cell * (btScalar(0.5) + m_cellDilation) + margin, cell, m_gridOrigin, m_dims);
 		const GrownCellTest wide(e, cell * (btScalar(0.5) + m_wideDilation) + margin, cell, m_gridOrigin, m_dims);
-		const GrownCellTest& range = wideLists ? wide : narrow;
-		for (int z = range.m_lo[2]; z <= range.m_hi[2]; ++z)
-			for (int y = range.m_lo[1]; y <= range.m_hi[1]; ++y)
+		for (int z = wide.m_lo[2]; z <= wide.m_hi[2]; ++z)
+			for (int y = wide.m_lo[1]; y <= wide.m_hi[1]; ++y)
 			{
 				const int row = (z * m_dims[1] + y) * m_dims[0];
 				int x0, x1;
-				if (wideLists && wide.rowSpan(y, z, cell, x0, x1))
+				if (wide.rowSpan(y, z, cell, x0, x1))
 					for (int x = x0; x <= x1; ++x)
 					{
 						m_widePairs.push_back(row + x);
@@ -821,8 +815,7 @@ void btEllipsoidWorldCache::buildLists()
 			}
 	}
 	listsFromPairs(m_cellPairs, cells, m_cellStart, m_cellItems, m_pairCursor);
-	if (wideLists)
-		listsFromPairs(m_widePairs, cells, m_wideStart, m_wideItems, m_pairCursor);
+	listsFromPairs(m_widePairs, cells, m_wideStart, m_wideItems, m_pairCursor);
 }
 
 btScalar btEllipsoidWorldCache::zeta(int i, const btVector3& worldPoint) const
