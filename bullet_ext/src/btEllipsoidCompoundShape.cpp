@@ -28,13 +28,9 @@ const double kAnimatedMargin = 0.25;
 
 /// Each ellipsoid's margin at a rebuild: its mean drift per update since the last build times this many updates,
 /// within [kAnimatedMargin, kAnimatedMarginMax] cells. One margin for all made the fastest part (a foot, a hand in a
-/// walk) rebuild the lists every third substep; per ellipsoid, only the fast ones get the longer lists. An ellipsoid
-/// drifting at a steady rate leaves its margin after about this many updates, and in a walk a dozen leave together:
-/// 16 updates (and one cell at most) rebuilt the skirt's lists every 15-20 substeps (42 builds in 800 substeps, each
-/// about 2.8 M instructions for 85 ellipsoids); 32 updates and two cells, 25 builds and 2% fewer instructions in the
-/// collider; 64 and four cells, longer lists that cost more per query than the builds they save.
-const double kAnimatedMarginUpdates = 32.0;
-const double kAnimatedMarginMax = 2.0;
+/// walk) rebuild the lists every third substep; per ellipsoid, only the fast ones get the longer lists.
+const double kAnimatedMarginUpdates = 16.0;
+const double kAnimatedMarginMax = 1.0;
 
 /// Hands the refusal `e` (null: none) to the caller's `error` when it asked for one; true when there is none.
 bool reportRefusal(const char* e, const char** error)

@@ -252,8 +252,8 @@ TEST_CASE("broad phase: an animated compound's lists stay conservative between r
 	// their margins (a compound seen once has none). Before, each flip read as a drift of up to twice a semi-axis
 	// and 30% of the ellipsoids flip per update: a rebuild every time.
 	CHECK(flipOnlyBuilds == 1);
-	// The fast ellipsoids get margins of 32 of their updates (up to two cells, 9-11 cm here): after the first
-	// rebuild they last about 10 updates at 10 mm, where the smallest margin (a quarter cell) lasted one. A rebuild
+	// The fast ellipsoids get margins of 16 of their updates (up to a cell, 4.5-5.6 cm here): after the first
+	// rebuild they last about 5 updates at 10 mm, where the smallest margin (a quarter cell) lasted one. A rebuild
 	// per update would be 100; at most one per 3 updates leaves room for the slow start and the jitter of the speeds.
 	CHECK(builds <= (updates - 20) / 3);
 	CHECK(builds >= 1); // (and the fast ones did leave their first margins: the rebuild path ran)
