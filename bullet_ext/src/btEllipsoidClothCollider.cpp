@@ -363,6 +363,8 @@ void btEllipsoidClothColliderCore::updateWorldCache(bool continuing)
 	m_sweepOnGrid = m_sweeping && !m_moving && m_current.listsHoldPreviousPoses() &&
 					m_current.getGridMargin() > btScalar(0) && !m_sweep.hasUnbounded();
 	m_sweepMaxPath = m_current.getCellSize();
+	if (m_sweeping && !m_sweepOnGrid)
+		m_sweep.expectEveryPath();
 	// A field is baked for one shape of the body: while the ellipsoids move by themselves it no longer describes the
 	// skin in the body frame (a skinned body's bind-pose field is read in its bones' frames, prepareBoneFields).
 	m_skinGeometry.begin(m_sweeping || m_compound->getBindPose() ? 0 : activeSkinField(),

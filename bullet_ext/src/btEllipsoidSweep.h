@@ -38,6 +38,9 @@ public:
 	/// (see btEllipsoidSweep.cpp for when this is conservative), each once, written to out (room for all entries).
 	/// The first kTestedQueries calls after prepare() test every swept box; the grid's lists are built by the next.
 	int candidates(const btVector3& q, const btVector3& x, btScalar radius, int* out);
+	/// Every path of this substep will ask candidates() (the static grid cannot serve the sweep): the lists are built by
+	/// the first call instead of after kTestedQueries box-tested ones.
+	void expectEveryPath() { m_testedQueries = int(kTestedQueries); }
 	/// How far candidates() grows the path box of q -> x on every side: the radius plus the deviation bound.
 	btScalar growth(const btVector3& q, const btVector3& x, btScalar radius) const
 	{
