@@ -366,6 +366,8 @@ void btEllipsoidClothColliderCore::updateWorldCache(bool continuing)
 	m_sweepOnGrid = m_sweeping && !m_moving && m_current.listsHoldPreviousPoses() &&
 					m_current.getGridMargin() > btScalar(0) && !m_sweep.hasUnbounded();
 	m_sweepMaxPath = m_current.getCellSize();
+	if (m_sweeping && !m_sweepOnGrid)
+		m_sweep.expectEveryPath();
 	// A field is baked for one shape of the body: while the ellipsoids move by themselves it no longer describes the
 	// skin in the body frame (a skinned body's bind-pose field is read in its bones' frames, prepareBoneFields).
 	m_skinGeometry.begin(m_sweeping || m_compound->getBindPose() ? 0 : activeSkinField(),
@@ -717,9 +719,11 @@ void btEllipsoidClothColliderCore::leavePocket(btSoftBody::Node& node, const Sub
 	const btVector3& x = node.m_x;
 	if (x.x() < lo.x() || x.y() < lo.y() || x.z() < lo.z() || x.x() > hi.x() || x.y() > hi.y() || x.z() > hi.z())
 		return;
+	unsigned char* hint = m_escapeHints ? &m_escapeHints[&node - m_contactNodeBase] : 0;
+	if (hint && m_pushOut.escapesAlongHint(m_current, x, *hint))
+		return; // (the common case: the ray that left last time leaves again)
 	btPushOutResult out;
-	m_pushOut.leaveEnclosedPocket(m_current, x, substep.m_skin, out,
-								  m_escapeHints ? &m_escapeHints[&node - m_contactNodeBase] : 0);
+	m_pushOut.leaveEnclosedPocket(m_current, x, substep.m_skin, out, hint);
 	if (!out.m_moved)
 		return;
 	++m_lastStats.m_nodesPushedOut;
@@ -736,7 +740,8 @@ btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, co
 {
 	// A node that starts within the skin goes back to its own clearance, not out to the full skin: pushed out by
 	// the skin every time its cloth's tension drew it onto the surface, resting cloth never came to rest.
-	const btScalar skin = btMin(substep.m_skin, btClearance(m_current[entry.m_ellipsoid], q));
+	const btScalar clearance = btClearance(m_current[entry.m_ellipsoid], q);
+	const btScalar skin = btMin(substep.m_skin, clearance);
 	btEntryPlacement placed;
 	btPlaceAtEntry(m_current, entry, substep.m_candidates, substep.m_tvals, nc, q, node.m_x, skin, placed);
 	btVector3 point;
@@ -756,7 +761,7 @@ btScalar btEllipsoidClothColliderCore::respondAtEntry(btSoftBody::Node& node, co
 	// held there would float ahead of it, so only a start within the contact band (a resting node) holds it.
 	if (respondVelocity(node, placed.m_normal, placed.m_surface, q, placed.m_center, entry.m_ellipsoid, substep,
 						btScalar(1) - entry.m_t) &&
-		(!m_sweeping || btClearance(m_current[entry.m_ellipsoid], q) <= substep.m_band))
+		(!m_sweeping || clearance <= substep.m_band))
 	{
 		// Held by static friction (or moving straight in): the node stays where it started the substep, outside
 		// every candidate (the path test found q outside). The entry point lies down the path, and a node placed

@@ -532,7 +532,7 @@ bool btEllipsoidWorldCache::gridCovers()
 	// test per query, instead of a build of every list (about 3.7 M instructions for 85 ellipsoids).
 	const int before = m_boxTested.size();
 	for (int i = 0; i < n; ++i)
-		if (!m_isBoxTested[i] && !(driftSinceBuild(i) <= m_gridMargins[i]))
+		if (!m_isBoxTested[i] && !withinGridMargin(i))
 		{
 			if (m_boxTested.size() == kMaxBoxTested)
 			{
@@ -545,6 +545,17 @@ bool btEllipsoidWorldCache::gridCovers()
 			m_isBoxTested[i] = 1;
 		}
 	return true;
+}
+
+bool btEllipsoidWorldCache::withinGridMargin(int i) const
+{
+	// The drift measured in the build's own frame bounds it as well (any frame of the ellipsoid gives a bound), and
+	// it is cheaper: the frame search of driftSinceBuild runs only for an ellipsoid that this bound puts outside.
+	const btEllipsoidLocalData& e = m_shape->getEllipsoid(i);
+	const btMatrix3x3 d = unwhitenOf(e) - m_gridUnwhiten[i];
+	const btScalar drift =
+		(e.m_center - m_gridCenters[i]).length() + btSqrt(d[0].length2() + d[1].length2() + d[2].length2());
+	return drift <= m_gridMargins[i] || driftSinceBuild(i) <= m_gridMargins[i];
 }
 
 btScalar btEllipsoidWorldCache::driftSinceBuild(int i) const

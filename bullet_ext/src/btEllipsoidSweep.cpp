@@ -95,7 +95,8 @@ const btAxisSymmetry* axisSymmetries()
 } // namespace
 
 btEllipsoidSweep::btEllipsoidSweep()
-	: m_growthPerLength(0), m_growthOffset(0), m_origin(0, 0, 0), m_unionMax(0, 0, 0), m_invCell(1), m_listsBuilt(true)
+	: m_growthPerLength(0), m_growthOffset(0), m_origin(0, 0, 0), m_unionMax(0, 0, 0), m_invCell(1), m_listsBuilt(true),
+	  m_testedQueries(0)
 {
 	m_dims[0] = m_dims[1] = m_dims[2] = 0;
 }
@@ -246,6 +247,15 @@ void btEllipsoidSweep::sizeGrid(int count)
 	}
 	m_origin = lo;
 	m_unionMax = hi;
+	m_testedQueries = 0;
+	m_bounded.resize(0);
+	for (int j = 0, a = 0; j < count; ++j)
+	{
+		if (a < m_always.size() && m_always[a] == j)
+			++a;
+		else
+			m_bounded.push_back(j);
+	}
 	if (listed == 0)
 		return;
 	const btVector3 size = hi - lo;
@@ -333,8 +343,6 @@ int btEllipsoidSweep::candidates(const btVector3& q, const btVector3& x, btScala
 	int nc = 0;
 	if (m_dims[0] > 0)
 	{
-		if (!m_listsBuilt)
-			buildLists();
 		const btScalar grow = growth(q, x, radius);
 		const btVector3 g(grow, grow, grow);
 		btVector3 boxMin = q, boxMax = q;
@@ -343,7 +351,21 @@ int btEllipsoidSweep::candidates(const btVector3& q, const btVector3& x, btScala
 		boxMin -= g;
 		boxMax += g;
 		if (boxesOverlap(boxMin, boxMax, m_origin, m_unionMax))
-			nc = walkCells(boxMin, boxMax, out);
+		{
+			// Until the lists pay for themselves (kTestedQueries), every swept box is tested: the same set (the lists
+			// are filtered by the same overlap test), built only in substeps with many paths for the swept grid.
+			if (!m_listsBuilt && m_testedQueries < int(kTestedQueries))
+			{
+				++m_testedQueries;
+				nc = testEveryBox(boxMin, boxMax, out);
+			}
+			else
+			{
+				if (!m_listsBuilt)
+					buildLists();
+				nc = walkCells(boxMin, boxMax, out);
+			}
+		}
 	}
 	for (int a = 0; a < m_always.size(); ++a)
 		out[nc++] = m_always[a];
@@ -390,4 +412,10 @@ int btEllipsoidSweep::walkCells(const btVector3& boxMin, const btVector3& boxMax
 				}
 			}
 	return nc;
+}
+
+int btEllipsoidSweep::testEveryBox(const btVector3& boxMin, const btVector3& boxMax, int* out) const
+{
+	const btEllipsoidWorldCache::PathQuery::ListIndex list = {&m_bounded[0]};
+	return btEllipsoidWorldCache::PathQuery::filterByBox(list, m_bounded.size(), &m_boxes[0], boxMin, boxMax, out);
 }

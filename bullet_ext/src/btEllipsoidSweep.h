@@ -36,8 +36,11 @@ public:
 
 	/// Every ellipsoid whose moving-frame path test can meet the node path q -> x grown by `radius` on every side
 	/// (see btEllipsoidSweep.cpp for when this is conservative), each once, written to out (room for all entries).
-	/// The grid's lists are built by the first call after prepare().
+	/// The first kTestedQueries calls after prepare() test every swept box; the grid's lists are built by the next.
 	int candidates(const btVector3& q, const btVector3& x, btScalar radius, int* out);
+	/// Every path of this substep will ask candidates() (the static grid cannot serve the sweep): the lists are built by
+	/// the first call instead of after kTestedQueries box-tested ones.
+	void expectEveryPath() { m_testedQueries = int(kTestedQueries); }
 	/// How far candidates() grows the path box of q -> x on every side: the radius plus the deviation bound.
 	btScalar growth(const btVector3& q, const btVector3& x, btScalar radius) const
 	{
@@ -65,6 +68,12 @@ public:
 	{
 		kCellsLongestSide = 32
 	};
+	/// Queries of a substep answered by testing every swept box before the grid's lists are built: a build costs
+	/// about as many instructions as 600 such queries (85 ellipsoids), and most substeps have a few long paths only.
+	enum
+	{
+		kTestedQueries = 256
+	};
 
 private:
 	btAlignedObjectArray<btScalar> m_previous;          ///< packed previous records
@@ -81,6 +90,8 @@ private:
 	btAlignedObjectArray<int> m_cellStart;
 	btAlignedObjectArray<int> m_cellItems;
 	bool m_listsBuilt; ///< m_cellStart / m_cellItems are those of the current boxes
+	int m_testedQueries; ///< queries since prepare() answered by testing every box (m_bounded)
+	btAlignedObjectArray<int> m_bounded; ///< the entries not in m_always, in order
 
 	/// Replaces the previous frame of entry j by its axis symmetry closest to the current frame (same ellipsoid).
 	void alignPreviousFrame(const btEllipsoidWorldCache::Entry& now, int j);
@@ -93,6 +104,8 @@ private:
 	/// Cell range [lo, hi] per axis under the world box [bMin, bMax] (clamped to the grid).
 	void cellRange(const btVector3& bMin, const btVector3& bMax, int lo[3], int hi[3]) const;
 	int walkCells(const btVector3& boxMin, const btVector3& boxMax, int* out) const;
+	/// The entries of m_bounded whose swept box overlaps [boxMin, boxMax], in order (the lists' answer, unsorted).
+	int testEveryBox(const btVector3& boxMin, const btVector3& boxMax, int* out) const;
 };
 
 #endif // BT_ELLIPSOID_SWEEP_H

@@ -462,6 +462,16 @@ bool btEllipsoidUnionPushOut::rayEscapes(const btVector3& p, const btVector3& di
 	return true;
 }
 
+bool btEllipsoidUnionPushOut::escapesAlongHint(const btEllipsoidWorldCache& cache, const btVector3& from, int hint)
+{
+	// (As leaveEnclosedPocket's first test.)
+	const bool binsReady = m_escapeRaysCache == &cache && m_escapeRaysCount == cache.size();
+	if (!(binsReady || hint >= kLatticeHint))
+		return false;
+	m_cache = &cache;
+	return hintedRayEscapes(hint, from);
+}
+
 bool btEllipsoidUnionPushOut::hintedRayEscapes(int hint, const btVector3& p) const
 {
 	if (hint >= kLatticeHint && hint < kLatticeHint + 26)

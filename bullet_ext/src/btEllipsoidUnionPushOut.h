@@ -50,6 +50,11 @@ public:
 	void leaveEnclosedPocket(const btEllipsoidWorldCache& cache, const btVector3& from, btScalar skin,
 							 btPushOutResult& out, unsigned char* hint = 0);
 
+	/// The first step of leaveEnclosedPocket alone: true when the ray `hint` names leaves the union from `from` (then
+	/// leaveEnclosedPocket would move nothing and keep the hint); false decides nothing (call leaveEnclosedPocket).
+	/// Most calls of a substep end here, without the result record.
+	bool escapesAlongHint(const btEllipsoidWorldCache& cache, const btVector3& from, int hint);
+
 	/// Escape hints: 0 none; 1 + 2 k + (1 for -e_k) an axis ray; kLatticeHint + d lattice direction d (0..25).
 	enum
 	{

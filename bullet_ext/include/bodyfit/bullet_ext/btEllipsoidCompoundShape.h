@@ -411,6 +411,9 @@ private:
 	/// An upper bound of how far any point of ellipsoid i moved since the last build: |c - c_b| + |U - U_b|_2 <=
 	/// |c - c_b| + |U - U_b|_F (U = R diag(a)).
 	btScalar driftSinceBuild(int i) const;
+	/// Ellipsoid i lies within its margin of its pose at the last build (driftSinceBuild(i) <= m_gridMargins[i], or
+	/// the same bound in the build's frame, skipping the frame search).
+	bool withinGridMargin(int i) const;
 	/// Sets m_gridMargins and m_gridMargin for a build (`cell`: the cell size before the grid grows by the margin).
 	void chooseGridMargins(bool animated, btScalar cell);
 	/// The cell lists (cells grown by m_cellDilation) and the wide lists (by m_wideDilation), each ellipsoid grown by
