@@ -1115,19 +1115,21 @@ double interiorReading(const OwnedPoints& owned, long long base, const CellLocat
 	return sum;
 }
 
-/// The reading in quanta of a skin sample's cell: interiorReading where it applies, else through CellCorners.
-double cellReading(const Lattice& L, const OwnedPoints& owned, const BrickNeighbours& neighbours, const CellLocation& c)
+/// The reading in quanta of a skin sample's cell, whose interiorCellBase is `base`: interiorReading where it applies,
+/// else through CellCorners.
+double cellReading(const Lattice& L, const OwnedPoints& owned, const BrickNeighbours& neighbours, const CellLocation& c,
+				   long long base)
 {
-	const long long base = interiorCellBase(L, owned, c);
 	return base >= 0 ? interiorReading(owned, base, c) : CellCorners(L, neighbours, c).reading(owned);
 }
 
 /// Step 4 for one skin sample: when it reads r > 0 the 8 corners of its cell are lowered by the least change that
 /// brings it to 0 (corner i by w_i r / sum w^2, w the trilinear weights, rounded up to whole quanta). True when it
 /// read > 0.
-bool lowerSkinReading(const Lattice& L, const CellLocation& c, OwnedPoints& owned, const BrickNeighbours& neighbours)
+bool lowerSkinReading(const Lattice& L, const CellLocation& c, long long base, OwnedPoints& owned,
+					  const BrickNeighbours& neighbours)
 {
-	if (cellReading(L, owned, neighbours, c) <= 0.0)
+	if (cellReading(L, owned, neighbours, c, base) <= 0.0)
 		return false; // most samples: read once, cheaply
 	const CellCorners corners(L, neighbours, c);
 	const double reading = corners.reading(owned);
@@ -1207,19 +1209,25 @@ void forEachSkinSample(const TriMesh& mesh, double voxel, Visit visit)
 struct SkinCells
 {
 	std::vector<CellLocation> cell;
+	std::vector<long long> base; ///< per cell, its interiorCellBase (found once: both readings need it)
 	std::vector<int> order;      ///< cells by layer: layer j's are order[layerStart[j] .. layerStart[j + 1])
 	std::vector<int> layerStart;
 
 	/// The cells of skinSamplePoints(mesh, L.h), located as the points are made.
-	SkinCells(const Lattice& L, const TriMesh& mesh)
+	SkinCells(const Lattice& L, const TriMesh& mesh, const OwnedPoints& owned)
 	{
 		const int layers = L.dims[kSlabAxis];
-		cell.reserve(skinSampleCount(mesh, L.h));
+		const std::size_t count = skinSampleCount(mesh, L.h);
+		cell.reserve(count);
+		base.reserve(count);
 		layerStart.assign(std::size_t(layers) + 1, 0);
 		forEachSkinSample(mesh, L.h, [&](const Eigen::Vector3d& p) {
 			CellLocation c;
 			if (locateCell(L.origin, L.h, L.dims, p, c))
-				cell.push_back(c), ++layerStart[std::size_t(c.brick[kSlabAxis]) + 1];
+			{
+				cell.push_back(c), base.push_back(interiorCellBase(L, owned, c));
+				++layerStart[std::size_t(c.brick[kSlabAxis]) + 1];
+			}
 		});
 		for (int j = 0; j < layers; ++j)
 			layerStart[std::size_t(j) + 1] += layerStart[std::size_t(j)];
@@ -1247,9 +1255,10 @@ int lowerSkinReadings(const Lattice& L, const SkinCells& skin, OwnedPoints& owne
 			for (int j = parity + 2 * first; j < parity + 2 * end; j += 2)
 				for (int r = skin.layerStart[std::size_t(j)]; r < skin.layerStart[std::size_t(j) + 1]; ++r)
 				{
-					const CellLocation& c = skin.cell[std::size_t(skin.order[std::size_t(r)])];
+					const std::size_t i = std::size_t(skin.order[std::size_t(r)]);
+					const CellLocation& c = skin.cell[i];
 					holdsSkin[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))] = 1;
-					lowered[std::size_t(j)] += lowerSkinReading(L, c, owned, neighbours) ? 1 : 0;
+					lowered[std::size_t(j)] += lowerSkinReading(L, c, skin.base[i], owned, neighbours) ? 1 : 0;
 				}
 		});
 	}
@@ -1268,10 +1277,10 @@ double largestSkinReading(const Lattice& L, const SkinCells& skin, const OwnedPo
 	const int n = int(skin.cell.size());
 	std::vector<double> worst(std::size_t(std::max(1, std::min(threads, n))), 0.0);
 	parallelParts(n, threads, [&](int part, int first, int end) {
-		for (int i = first; i < end; ++i)
+		for (std::size_t i = std::size_t(first); i < std::size_t(end); ++i)
 			worst[std::size_t(part)] =
 				std::max(worst[std::size_t(part)],
-						 std::abs(std::clamp(cellReading(L, owned, neighbours, skin.cell[std::size_t(i)]) * quantum,
+						 std::abs(std::clamp(cellReading(L, owned, neighbours, skin.cell[i], skin.base[i]) * quantum,
 											 -clamp, clamp)));
 	});
 	return *std::max_element(worst.begin(), worst.end());
@@ -1450,7 +1459,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	field.nx = L.dims[0], field.ny = L.dims[1], field.nz = L.dims[2];
 	quantise(owned, field.quantum(), threads);
 
-	const SkinCells skin(L, mesh);
+	const SkinCells skin(L, mesh, owned);
 	std::vector<char> stored(std::size_t(L.brickCount()), 0);
 	const BrickNeighbours neighbours(L, owned, brickSign);
 	field.loweredSamples = lowerSkinReadings(L, skin, owned, neighbours, threads, stored);
