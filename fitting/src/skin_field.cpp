@@ -590,14 +590,15 @@ bool vertexConeBox(const Eigen::Vector3d& pv, const std::vector<Eigen::Vector3d>
 		for (std::size_t j = i + 1; j < edges.size(); ++j)
 		{
 			const Eigen::Vector3d r = edges[i].cross(edges[j]);
-			if (!(r.norm() > 1e-12))
+			const double length = r.norm();
+			if (!(length > 1e-12))
 				continue;
 			// Both directions of the line at once: (-r) . e is exactly -(r . e) (rounding is symmetric in sign).
-			const Eigen::Vector3d ray = r.normalized();
+			const Eigen::Vector3d ray = r / length; // what r.normalized() gives, without a second square root
 			bool plus = true, minus = true;
-			for (const Eigen::Vector3d& e : edges)
+			for (std::size_t k = 0; k < edges.size() && (plus || minus); ++k)
 			{
-				const double d = ray.dot(e);
+				const double d = ray.dot(edges[k]);
 				plus = plus && d <= kTolerance;
 				minus = minus && -d <= kTolerance;
 			}
@@ -886,14 +887,18 @@ void signFarPointsInSlab(const Lattice& L, int firstJ, int endJ, OwnedPoints& ow
 					exactX.clear(), exactSign.clear(), pending.clear();
 					long long lastX = -1; // the last exact point (-1: none yet, whose run reads +)
 					std::int8_t lastSign = 1;
+					// runSign's rule, left <= right, is X - lastX <= nextX - X (with lastX = -1 before the first exact
+					// point: left = X + 1), i.e. X <= (lastX + nextX) / 2 in integers (lastX + nextX >= 0): the
+					// points up to that split take lastSign, the rest nextSign.
 					auto decide = [&](long long nextX, std::int8_t nextSign) {
+						const long long split = (lastX + nextX) / 2;
 						for (const FarRun& run : pending)
-							for (int m = 0; m < run.count; ++m)
-							{
-								const long long X = run.X + m;
-								const long long left = lastX >= 0 ? X - lastX : X + 1;
-								owned.sign[std::size_t(run.p + m)] = left <= nextX - X ? lastSign : nextSign;
-							}
+						{
+							const int before = int(std::clamp(split - run.X + 1, 0LL, (long long)run.count));
+							std::int8_t* sign = owned.sign.data() + run.p;
+							std::fill(sign, sign + before, lastSign);
+							std::fill(sign + before, sign + run.count, nextSign);
+						}
 						pending.clear();
 					};
 					for (std::size_t n = 0; n < nearI.size(); ++n)
@@ -1110,19 +1115,21 @@ double interiorReading(const OwnedPoints& owned, long long base, const CellLocat
 	return sum;
 }
 
-/// The reading in quanta of a skin sample's cell: interiorReading where it applies, else through CellCorners.
-double cellReading(const Lattice& L, const OwnedPoints& owned, const BrickNeighbours& neighbours, const CellLocation& c)
+/// The reading in quanta of a skin sample's cell, whose interiorCellBase is `base`: interiorReading where it applies,
+/// else through CellCorners.
+double cellReading(const Lattice& L, const OwnedPoints& owned, const BrickNeighbours& neighbours, const CellLocation& c,
+				   long long base)
 {
-	const long long base = interiorCellBase(L, owned, c);
 	return base >= 0 ? interiorReading(owned, base, c) : CellCorners(L, neighbours, c).reading(owned);
 }
 
 /// Step 4 for one skin sample: when it reads r > 0 the 8 corners of its cell are lowered by the least change that
 /// brings it to 0 (corner i by w_i r / sum w^2, w the trilinear weights, rounded up to whole quanta). True when it
 /// read > 0.
-bool lowerSkinReading(const Lattice& L, const CellLocation& c, OwnedPoints& owned, const BrickNeighbours& neighbours)
+bool lowerSkinReading(const Lattice& L, const CellLocation& c, long long base, OwnedPoints& owned,
+					  const BrickNeighbours& neighbours)
 {
-	if (cellReading(L, owned, neighbours, c) <= 0.0)
+	if (cellReading(L, owned, neighbours, c, base) <= 0.0)
 		return false; // most samples: read once, cheaply
 	const CellCorners corners(L, neighbours, c);
 	const double reading = corners.reading(owned);
@@ -1142,6 +1149,59 @@ bool lowerSkinReading(const Lattice& L, const CellLocation& c, OwnedPoints& owne
 	return true;
 }
 
+/// Divisions n of a skin sample segment of this length (skinSamplePoints).
+int sampleDivisions(double length, double voxel)
+{
+	return int(std::clamp(std::ceil(length / voxel), 3.0, 64.0));
+}
+
+/// The number of points skinSamplePoints gives.
+std::size_t skinSampleCount(const TriMesh& mesh, double voxel)
+{
+	std::size_t count = std::size_t(mesh.vertexCount());
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		double longest = 0.0;
+		for (int k = 0; k < 3; ++k)
+		{
+			const double length = (mesh.V.row(mesh.F(f, (k + 1) % 3)) - mesh.V.row(mesh.F(f, k))).norm();
+			longest = std::max(longest, length);
+			if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3))
+				count += std::size_t(sampleDivisions(length, voxel) - 1);
+		}
+		const std::size_t n = std::size_t(sampleDivisions(longest, voxel));
+		count += (n - 1) * (n - 2) / 2; // i, j >= 1, i + j <= n - 1
+	}
+	return count;
+}
+
+/// Calls visit(p) for every point of skinSamplePoints, in its order (so the bake can locate them without storing
+/// them).
+template <class Visit>
+void forEachSkinSample(const TriMesh& mesh, double voxel, Visit visit)
+{
+	for (int v = 0; v < mesh.vertexCount(); ++v)
+		visit(Eigen::Vector3d(mesh.V.row(v).transpose()));
+	for (int f = 0; f < mesh.faceCount(); ++f)
+	{
+		const Eigen::Vector3d p[3] = {mesh.V.row(mesh.F(f, 0)).transpose(), mesh.V.row(mesh.F(f, 1)).transpose(),
+									  mesh.V.row(mesh.F(f, 2)).transpose()};
+		for (int k = 0; k < 3; ++k)
+			if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3)) // each edge once: from the face where it runs up the indices
+			{
+				const Eigen::Vector3d &a = p[k], &b = p[(k + 1) % 3];
+				const int n = sampleDivisions((b - a).norm(), voxel);
+				for (int i = 1; i < n; ++i)
+					visit(Eigen::Vector3d((double(n - i) * a + double(i) * b) / double(n)));
+			}
+		const int n =
+			sampleDivisions(std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()}), voxel);
+		for (int i = 1; i < n; ++i)
+			for (int j = 1; i + j < n; ++j)
+				visit(Eigen::Vector3d((double(i) * p[0] + double(j) * p[1] + double(n - i - j) * p[2]) / double(n)));
+	}
+}
+
 /// The cells the skin samples read, located once (the lowering and the final reading both need them), in sample
 /// order, and the order of the lowering: by brick layer in y, in sample order within a layer (a counting sort). A
 /// sample off the grid (which cannot happen: the grid holds the mesh's box) is left out, as sample() would read +clamp
@@ -1149,20 +1209,26 @@ bool lowerSkinReading(const Lattice& L, const CellLocation& c, OwnedPoints& owne
 struct SkinCells
 {
 	std::vector<CellLocation> cell;
+	std::vector<long long> base; ///< per cell, its interiorCellBase (found once: both readings need it)
 	std::vector<int> order;      ///< cells by layer: layer j's are order[layerStart[j] .. layerStart[j + 1])
 	std::vector<int> layerStart;
 
-	SkinCells(const Lattice& L, const std::vector<Eigen::Vector3d>& samples)
+	/// The cells of skinSamplePoints(mesh, L.h), located as the points are made.
+	SkinCells(const Lattice& L, const TriMesh& mesh, const OwnedPoints& owned)
 	{
 		const int layers = L.dims[kSlabAxis];
-		cell.reserve(samples.size());
+		const std::size_t count = skinSampleCount(mesh, L.h);
+		cell.reserve(count);
+		base.reserve(count);
 		layerStart.assign(std::size_t(layers) + 1, 0);
-		for (const Eigen::Vector3d& p : samples)
-		{
+		forEachSkinSample(mesh, L.h, [&](const Eigen::Vector3d& p) {
 			CellLocation c;
 			if (locateCell(L.origin, L.h, L.dims, p, c))
-				cell.push_back(c), ++layerStart[std::size_t(c.brick[kSlabAxis]) + 1];
-		}
+			{
+				cell.push_back(c), base.push_back(interiorCellBase(L, owned, c));
+				++layerStart[std::size_t(c.brick[kSlabAxis]) + 1];
+			}
+		});
 		for (int j = 0; j < layers; ++j)
 			layerStart[std::size_t(j) + 1] += layerStart[std::size_t(j)];
 		order.resize(cell.size());
@@ -1189,9 +1255,10 @@ int lowerSkinReadings(const Lattice& L, const SkinCells& skin, OwnedPoints& owne
 			for (int j = parity + 2 * first; j < parity + 2 * end; j += 2)
 				for (int r = skin.layerStart[std::size_t(j)]; r < skin.layerStart[std::size_t(j) + 1]; ++r)
 				{
-					const CellLocation& c = skin.cell[std::size_t(skin.order[std::size_t(r)])];
+					const std::size_t i = std::size_t(skin.order[std::size_t(r)]);
+					const CellLocation& c = skin.cell[i];
 					holdsSkin[std::size_t(L.brickId(c.brick[0], c.brick[1], c.brick[2]))] = 1;
-					lowered[std::size_t(j)] += lowerSkinReading(L, c, owned, neighbours) ? 1 : 0;
+					lowered[std::size_t(j)] += lowerSkinReading(L, c, skin.base[i], owned, neighbours) ? 1 : 0;
 				}
 		});
 	}
@@ -1210,10 +1277,10 @@ double largestSkinReading(const Lattice& L, const SkinCells& skin, const OwnedPo
 	const int n = int(skin.cell.size());
 	std::vector<double> worst(std::size_t(std::max(1, std::min(threads, n))), 0.0);
 	parallelParts(n, threads, [&](int part, int first, int end) {
-		for (int i = first; i < end; ++i)
+		for (std::size_t i = std::size_t(first); i < std::size_t(end); ++i)
 			worst[std::size_t(part)] =
 				std::max(worst[std::size_t(part)],
-						 std::abs(std::clamp(cellReading(L, owned, neighbours, skin.cell[std::size_t(i)]) * quantum,
+						 std::abs(std::clamp(cellReading(L, owned, neighbours, skin.cell[i], skin.base[i]) * quantum,
 											 -clamp, clamp)));
 	});
 	return *std::max_element(worst.begin(), worst.end());
@@ -1341,43 +1408,9 @@ void checkMesh(const TriMesh& mesh)
 
 std::vector<Eigen::Vector3d> skinSamplePoints(const TriMesh& mesh, double voxel)
 {
-	auto divisions = [voxel](double length) { return int(std::clamp(std::ceil(length / voxel), 3.0, 64.0)); };
-	// Counted first: the points are ~20 per face at a 5 mm voxel, and growing the vector would copy them.
-	std::size_t count = std::size_t(mesh.vertexCount());
-	for (int f = 0; f < mesh.faceCount(); ++f)
-	{
-		double longest = 0.0;
-		for (int k = 0; k < 3; ++k)
-		{
-			const double length = (mesh.V.row(mesh.F(f, (k + 1) % 3)) - mesh.V.row(mesh.F(f, k))).norm();
-			longest = std::max(longest, length);
-			if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3))
-				count += std::size_t(divisions(length) - 1);
-		}
-		const std::size_t n = std::size_t(divisions(longest));
-		count += (n - 1) * (n - 2) / 2; // i, j >= 1, i + j <= n - 1
-	}
 	std::vector<Eigen::Vector3d> out;
-	out.reserve(count);
-	for (int v = 0; v < mesh.vertexCount(); ++v)
-		out.push_back(mesh.V.row(v).transpose());
-	for (int f = 0; f < mesh.faceCount(); ++f)
-	{
-		const Eigen::Vector3d p[3] = {mesh.V.row(mesh.F(f, 0)).transpose(), mesh.V.row(mesh.F(f, 1)).transpose(),
-									  mesh.V.row(mesh.F(f, 2)).transpose()};
-		for (int k = 0; k < 3; ++k)
-			if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3)) // each edge once: from the face where it runs up the indices
-			{
-				const Eigen::Vector3d &a = p[k], &b = p[(k + 1) % 3];
-				const int n = divisions((b - a).norm());
-				for (int i = 1; i < n; ++i)
-					out.push_back((double(n - i) * a + double(i) * b) / double(n));
-			}
-		const int n = divisions(std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()}));
-		for (int i = 1; i < n; ++i)
-			for (int j = 1; i + j < n; ++j)
-				out.push_back((double(i) * p[0] + double(j) * p[1] + double(n - i - j) * p[2]) / double(n));
-	}
+	out.reserve(skinSampleCount(mesh, voxel)); // ~20 per face at a 5 mm voxel: growing the vector would copy them
+	forEachSkinSample(mesh, voxel, [&](const Eigen::Vector3d& p) { out.push_back(p); });
 	return out;
 }
 
@@ -1426,7 +1459,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	field.nx = L.dims[0], field.ny = L.dims[1], field.nz = L.dims[2];
 	quantise(owned, field.quantum(), threads);
 
-	const SkinCells skin(L, skinSamplePoints(mesh, L.h));
+	const SkinCells skin(L, mesh, owned);
 	std::vector<char> stored(std::size_t(L.brickCount()), 0);
 	const BrickNeighbours neighbours(L, owned, brickSign);
 	field.loweredSamples = lowerSkinReadings(L, skin, owned, neighbours, threads, stored);
