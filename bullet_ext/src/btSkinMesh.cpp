@@ -323,6 +323,85 @@ bool btSkinMesh::closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoi
 	return true;
 }
 
+const btScalar btSkinMesh::kMinNormalCosine = btScalar(0.9);
+const btScalar btSkinMesh::kOnSkin = btScalar(1e-6);
+const btScalar btSkinMesh::kFoldDepth = btScalar(0.010);
+
+bool btSkinMesh::signedDistance(const btVector3& p, btScalar radius, btSkinMeshPoint& near, btScalar& side,
+								int hint) const
+{
+	if (!closestPoint(p, radius, near, hint))
+		return false;
+	const btVector3 n = getNormal(near.m_triangle);
+	if (n.length2() == btScalar(0))
+		return false; // a degenerate triangle
+	if (near.m_distance <= kOnSkin)
+	{
+		side = btScalar(0);
+		return true;
+	}
+	const btScalar along = (p - near.m_point).dot(n);
+	if (btFabs(along) < kMinNormalCosine * near.m_distance)
+		return false;
+	// The closest sheet's side is p's side only if no other sheet near it says otherwise: where the skinned skin
+	// runs into itself (an arm pressed into the hip, the thighs), p can be outside the nearest sheet and inside the
+	// part that sheet lies in.
+	const btScalar sign = along > btScalar(0) ? btScalar(1) : btScalar(-1);
+	if (otherSideWithin(p, near.m_distance + kFoldDepth, sign))
+		return false;
+	side = sign * near.m_distance;
+	return true;
+}
+
+bool btSkinMesh::otherSideWithin(const btVector3& p, btScalar radius, btScalar sign) const
+{
+	if (m_nodes.size() == 0)
+		return false;
+	const btScalar radius2 = radius * radius;
+	int stack[64];
+	int top = 0;
+	stack[top++] = 0;
+	while (top > 0)
+	{
+		const Node& node = m_nodes[stack[--top]];
+		if (boxDistance2(p, node.m_min, node.m_max) > radius2)
+			continue;
+		if (node.m_right >= 0)
+		{
+			if (top + 2 > 64)
+				continue; // (unreachable, as in closestPoint)
+			stack[top++] = node.m_right;
+			stack[top++] = int(&node - &m_nodes[0]) + 1;
+			continue;
+		}
+		for (int k = 0; k < node.m_count; ++k)
+			if (putsOnOtherSide(p, m_order[node.m_first + k], radius2, sign))
+				return true;
+	}
+	return false;
+}
+
+bool btSkinMesh::putsOnOtherSide(const btVector3& p, int t, btScalar radius2, btScalar sign) const
+{
+	// The closest point q lies in the triangle's plane, so (p - q).n is p's height h over the plane: the sign is
+	// trusted on the other side only when -sign h >= kMinNormalCosine |p - q| >= kMinNormalCosine |h|, which the
+	// height alone can rule out before q is computed.
+	const btVector3& a = vertex(t, 0);
+	const btVector3& b = vertex(t, 1);
+	const btVector3& c = vertex(t, 2);
+	const btVector3 cross = (b - a).cross(c - a);
+	const btScalar h = sign * m_orientation * (p - a).dot(cross); // (the height times |cross|)
+	if (!(h < btScalar(0)) || h * h > radius2 * cross.length2())
+		return false;
+	btScalar bary[3];
+	btClosestOnTriangle(p, a, b, c, bary);
+	const btScalar d2 = (p - (a * bary[0] + b * bary[1] + c * bary[2])).length2();
+	if (d2 > radius2 || d2 <= kOnSkin * kOnSkin)
+		return false;
+	// -h / |cross| >= kMinNormalCosine sqrt(d2), squared (both sides are positive)
+	return h * h >= kMinNormalCosine * kMinNormalCosine * d2 * cross.length2();
+}
+
 btVector3 btSkinMesh::previousPoint(const btSkinMeshPoint& point) const
 {
 	const int t = point.m_triangle;

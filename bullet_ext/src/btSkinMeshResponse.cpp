@@ -27,38 +27,16 @@ const btScalar kSearchRadius = btScalar(0.03);
 /// The longest node path relative to the skin under it, and the deepest end below the skin, that the mesh decides.
 const btScalar kMaxRelativePath = btScalar(0.010);
 const btScalar kMaxDepth = btScalar(0.010);
-/// The direction from the closest point to the node must be within acos(0.9) = 26 degrees of the triangle's normal
-/// for its sign to be trusted: exact at a face's interior point; at an edge or a corner the direction lies in the
-/// (outward or inward) cone of the normals of the faces there, so the sign agrees with the pseudo-normal unless two of
-/// those faces fold back by more than 154 degrees.
-const btScalar kMinNormalCosine = btScalar(0.9);
-/// Below this distance (metres) a point is on the skin: side 0, whatever the direction.
-const btScalar kOnSkin = btScalar(1e-6);
 /// A placed node lands this far (metres) above the skin offset (the distance is recomputed there; rounding of
 /// coordinates of a few metres in float is ~1e-6 m).
 const btScalar kLift = btScalar(1e-4);
 /// Projections onto the offset surface before a placement gives up (a crease: each step can meet another triangle).
 const int kMaxProjections = 4;
 
-/// The signed distance of p (body frame) to the skin: `near` its closest point; false when the sign is not trusted or
-/// no skin lies within kSearchRadius. `hint`: a triangle near p, or -1 (btSkinMesh::closestPoint).
+/// The signed distance of p (body frame) to the skin within kSearchRadius (btSkinMesh::signedDistance).
 bool signedSkinDistance(const btSkinMesh& mesh, const btVector3& p, btSkinMeshPoint& near, btScalar& side, int hint)
 {
-	if (!mesh.closestPoint(p, kSearchRadius, near, hint))
-		return false;
-	const btVector3 n = mesh.getNormal(near.m_triangle);
-	if (n.length2() == btScalar(0))
-		return false; // a degenerate triangle
-	if (near.m_distance <= kOnSkin)
-	{
-		side = btScalar(0);
-		return true;
-	}
-	const btScalar along = (p - near.m_point).dot(n);
-	if (btFabs(along) < kMinNormalCosine * near.m_distance)
-		return false;
-	side = along > btScalar(0) ? near.m_distance : -near.m_distance;
-	return true;
+	return mesh.signedDistance(p, kSearchRadius, near, side, hint);
 }
 
 /// Steps of the sphere trace of a long relative path before it gives up (the union then decides).
