@@ -33,10 +33,12 @@ const btScalar kLift = btScalar(1e-4);
 /// Projections onto the offset surface before a placement gives up (a crease: each step can meet another triangle).
 const int kMaxProjections = 4;
 
-/// The signed distance of p (body frame) to the skin within kSearchRadius (btSkinMesh::signedDistance).
+/// The signed distance of p (body frame) to the nearest sheet of skin within kSearchRadius (btSkinMesh::closestSide):
+/// the response decides on it, and checks the one position it leaves the node at against the other sheets
+/// (btSkinMesh::sideContradicted).
 bool signedSkinDistance(const btSkinMesh& mesh, const btVector3& p, btSkinMeshPoint& near, btScalar& side, int hint)
 {
-	return mesh.signedDistance(p, kSearchRadius, near, side, hint);
+	return mesh.closestSide(p, kSearchRadius, near, side, hint);
 }
 
 /// Steps of the sphere trace of a long relative path before it gives up (the union then decides).
@@ -51,8 +53,8 @@ bool traceOnSkin(const btSkinMesh& mesh, const btVector3& a, const btVector3& b,
 				 btSkinMeshPoint& near, bool& clear)
 {
 	btScalar side;
-	if (!signedSkinDistance(mesh, a, near, side, -1) || side < offset)
-		return false;
+	if (!signedSkinDistance(mesh, a, near, side, -1) || side < offset || mesh.sideContradicted(a, side))
+		return false; // (the path never comes within the offset of the skin: its end is on its start's side)
 	const btVector3 d = b - a;
 	const btScalar len = d.length();
 	btScalar s = btScalar(0), dist = side;
@@ -134,9 +136,13 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 	const btVector3 start = q + (m_currentPose * near.m_point - m_previousPose * mesh.previousPoint(near));
 	if ((node.m_x - start).length2() > kMaxRelativePath * kMaxRelativePath)
 		return traceLongPath(node, m_currentPose.invXform(start), substep);
-	++m_lastStats.m_skinMeshNodes;
 	if (side >= offset)
+	{
+		if (mesh.sideContradicted(m_currentPose.invXform(node.m_x), side))
+			return false;
+		++m_lastStats.m_skinMeshNodes;
 		return true; // outside the skin by the offset: no contact
+	}
 	// Placement at the offset along the closest triangle's normal, repeated from there while another triangle is
 	// nearer (a crease).
 	const btScalar startSide = side;
@@ -145,11 +151,11 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 	{
 		p = near.m_point + mesh.getNormal(near.m_triangle) * (offset + kLift);
 		if (i == kMaxProjections || !signedSkinDistance(mesh, p, near, side, near.m_triangle))
-		{
-			--m_lastStats.m_skinMeshNodes;
 			return false;
-		}
 	}
+	if (mesh.sideContradicted(p, side))
+		return false;
+	++m_lastStats.m_skinMeshNodes;
 	if (startSide < btScalar(0))
 		++m_lastStats.m_nodesPushedOut;
 	else

@@ -43,15 +43,18 @@ public:
 	/// are opened.
 	bool closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoint& out, int hint = -1) const;
 	/// The signed distance of p to the skin (positive outside), with `near` its closest point, when a triangle lies
-	/// within `radius` and the sign can be trusted: the direction from the closest point to p is within
-	/// acos(kMinNormalCosine) of that triangle's outward normal (or p is on the skin: side 0), and no other sheet of
-	/// skin within kFoldDepth beyond it puts p on the other side (skin folded or pushed into itself, see
-	/// otherSideWithin). \return false otherwise (near still holds the closest point, if any). `hint` as closestPoint.
+	/// within `radius` and the closest triangle's sign can be trusted: the direction from the closest point to p is
+	/// within acos(kMinNormalCosine) of that triangle's outward normal (or p is on the skin: side 0). \return false
+	/// otherwise (near still holds the closest point, if any). `hint` as closestPoint. It reads the nearest sheet
+	/// only: see sideContradicted for skin pushed into itself.
+	bool closestSide(const btVector3& p, btScalar radius, btSkinMeshPoint& near, btScalar& side, int hint = -1) const;
+	/// True when another sheet of skin within kFoldDepth beyond the nearest one puts p, at signed distance `side`
+	/// (closestSide), on the other side with a trusted direction: where the skinned skin runs into itself (an arm
+	/// pressed into the hip), p can be outside the nearest sheet and inside the part that sheet lies in.
+	bool sideContradicted(const btVector3& p, btScalar side) const;
+	/// closestSide, false also when sideContradicted.
 	bool signedDistance(const btVector3& p, btScalar radius, btSkinMeshPoint& near, btScalar& side,
 						int hint = -1) const;
-	/// True when a triangle within `radius` of p puts p on the side opposite to `sign` (+1 outside, -1 inside)
-	/// with a trusted direction (within acos(kMinNormalCosine) of its normal, p not on it).
-	bool otherSideWithin(const btVector3& p, btScalar radius, btScalar sign) const;
 	/// The direction from a closest point to the query point must be within acos(0.9) = 26 degrees of the
 	/// triangle's normal for its sign to be trusted: exact at a face's interior point; at an edge or a corner the
 	/// direction lies in the (outward or inward) cone of the normals of the faces there, so the sign agrees with the
@@ -59,7 +62,7 @@ public:
 	static const btScalar kMinNormalCosine;
 	/// Below this distance (metres) a point is on the skin: side 0, whatever the direction.
 	static const btScalar kOnSkin;
-	/// How far beyond the closest point (metres) signedDistance looks for skin that puts p on the other side.
+	/// How far beyond the nearest sheet (metres) sideContradicted looks for skin that puts p on the other side.
 	static const btScalar kFoldDepth;
 	/// The same barycentric point in the previous pose.
 	btVector3 previousPoint(const btSkinMeshPoint& point) const;
@@ -91,6 +94,9 @@ private:
 	int build(int first, int count, const btAlignedObjectArray<btVector3>& centroids);
 	/// Takes triangle t as out's closest point when it is nearer than best2 (or as near, with a lower index).
 	void consider(const btVector3& p, int t, btScalar& best2, btSkinMeshPoint& out) const;
+	/// True when a triangle within `radius` of p puts p on the side opposite to `sign` (+1 outside, -1 inside)
+	/// with a trusted direction (within acos(kMinNormalCosine) of its normal, p not on it).
+	bool otherSideWithin(const btVector3& p, btScalar radius, btScalar sign) const;
 	/// Whether triangle t, if within radius2 (squared) of p, puts p on the side opposite to sign (otherSideWithin).
 	bool putsOnOtherSide(const btVector3& p, int t, btScalar radius2, btScalar sign) const;
 	/// The leaves' corner lists (m_leafVertices), once after build().
