@@ -351,17 +351,15 @@ bool btSkinMesh::closestSide(const btVector3& p, btScalar radius, btSkinMeshPoin
 	return true;
 }
 
-bool btSkinMesh::sideContradicted(const btVector3& p, btScalar side) const
+bool btSkinMesh::sideContradicted(const btSkinMeshPoint& near, btScalar side) const
 {
-	if (side == btScalar(0))
-		return false;
-	return otherSideWithin(p, btFabs(side) + kFoldDepth, side > btScalar(0) ? btScalar(1) : btScalar(-1));
+	return side > btScalar(0) && near.m_triangle >= 0 && otherSideWithin(near.m_point, kFoldDepth, btScalar(1));
 }
 
 bool btSkinMesh::signedDistance(const btVector3& p, btScalar radius, btSkinMeshPoint& near, btScalar& side,
 								int hint) const
 {
-	return closestSide(p, radius, near, side, hint) && !sideContradicted(p, side);
+	return closestSide(p, radius, near, side, hint) && !sideContradicted(near, side);
 }
 
 bool btSkinMesh::otherSideWithin(const btVector3& p, btScalar radius, btScalar sign) const

@@ -53,7 +53,7 @@ bool traceOnSkin(const btSkinMesh& mesh, const btVector3& a, const btVector3& b,
 				 btSkinMeshPoint& near, bool& clear)
 {
 	btScalar side;
-	if (!signedSkinDistance(mesh, a, near, side, -1) || side < offset || mesh.sideContradicted(a, side))
+	if (!signedSkinDistance(mesh, a, near, side, -1) || side < offset || mesh.sideContradicted(near, side))
 		return false; // (the path never comes within the offset of the skin: its end is on its start's side)
 	const btVector3 d = b - a;
 	const btScalar len = d.length();
@@ -138,7 +138,7 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 		return traceLongPath(node, m_currentPose.invXform(start), substep);
 	if (side >= offset)
 	{
-		if (mesh.sideContradicted(m_currentPose.invXform(node.m_x), side))
+		if (mesh.sideContradicted(near, side))
 			return false;
 		++m_lastStats.m_skinMeshNodes;
 		return true; // outside the skin by the offset: no contact
@@ -153,7 +153,7 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 		if (i == kMaxProjections || !signedSkinDistance(mesh, p, near, side, near.m_triangle))
 			return false;
 	}
-	if (mesh.sideContradicted(p, side))
+	if (mesh.sideContradicted(near, side))
 		return false;
 	++m_lastStats.m_skinMeshNodes;
 	if (startSide < btScalar(0))

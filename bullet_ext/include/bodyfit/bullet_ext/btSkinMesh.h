@@ -48,10 +48,12 @@ public:
 	/// otherwise (near still holds the closest point, if any). `hint` as closestPoint. It reads the nearest sheet
 	/// only: see sideContradicted for skin pushed into itself.
 	bool closestSide(const btVector3& p, btScalar radius, btSkinMeshPoint& near, btScalar& side, int hint = -1) const;
-	/// True when another sheet of skin within kFoldDepth beyond the nearest one puts p, at signed distance `side`
-	/// (closestSide), on the other side with a trusted direction: where the skinned skin runs into itself (an arm
-	/// pressed into the hip), p can be outside the nearest sheet and inside the part that sheet lies in.
-	bool sideContradicted(const btVector3& p, btScalar side) const;
+	/// True when p, outside the nearest sheet by `side` > 0 with `near` its closest point (closestSide), is inside
+	/// another part of the skin all the same: where the skinned skin runs into itself (an arm pressed into the hip),
+	/// the nearest sheet can lie inside another part. Then so does p, for no skin comes between p and `near`; the
+	/// test is on `near`: a triangle within kFoldDepth of it puts it on its inner side with a trusted direction.
+	/// An inside claim (side <= 0) is not contradicted: a point inside the nearest sheet is inside the body.
+	bool sideContradicted(const btSkinMeshPoint& near, btScalar side) const;
 	/// closestSide, false also when sideContradicted.
 	bool signedDistance(const btVector3& p, btScalar radius, btSkinMeshPoint& near, btScalar& side,
 						int hint = -1) const;
@@ -62,7 +64,7 @@ public:
 	static const btScalar kMinNormalCosine;
 	/// Below this distance (metres) a point is on the skin: side 0, whatever the direction.
 	static const btScalar kOnSkin;
-	/// How far beyond the nearest sheet (metres) sideContradicted looks for skin that puts p on the other side.
+	/// How far from the nearest skin point (metres) sideContradicted looks for a part it lies in.
 	static const btScalar kFoldDepth;
 	/// The same barycentric point in the previous pose.
 	btVector3 previousPoint(const btSkinMeshPoint& point) const;
