@@ -6,7 +6,8 @@ or of another bone group): a node the union's swept broad phase kept is decided 
 which the skinning driver writes with the ellipsoids. Every case the mesh query cannot vouch for keeps the swept
 union response, the conservative one: no triangle within kSearchRadius, a closest-point direction far from the
 triangle's normal (the sign), an end deeper than kMaxDepth, a long relative path whose start is not outside or whose
-trace runs out of steps.
+trace runs out of steps, and a node left outside the nearest sheet whose closest skin point lies inside another part
+of the skin (btSkinMesh::sideContradicted: skinning pushes the skin into itself, e.g. an arm into the hip).
 
 Why the nearest skin is the skin the node met: the node starts outside the skin (the previous substep left it there)
 and its path relative to the skin under it (the start carried by the motion of its closest skin point) is at most
