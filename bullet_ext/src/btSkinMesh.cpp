@@ -6,8 +6,9 @@ bodyfit: the skinned skin as a refitted triangle mesh. See btSkinMesh.h.
 
 namespace
 {
-/// Triangles per leaf of the tree.
-const int kLeafSize = 8;
+/// Triangles per leaf of the tree (at most). 4 against 8: the walk tights' skin-mesh response takes 10% fewer
+/// instructions, the refit 36% more, 8% fewer in all (callgrind, 40 steps, 2026-12-04); the answers are the same.
+const int kLeafSize = 4;
 } // namespace
 
 void btClosestOnTriangle(const btVector3& p, const btVector3& a, const btVector3& b, const btVector3& c,
@@ -306,7 +307,7 @@ bool btSkinMesh::closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoi
 		const Node& node = m_nodes[stack[top]];
 		if (node.m_right >= 0)
 		{
-			// Nearer child last (popped first); the depth is about log2(triangles / 8), far below the stack size.
+			// Nearer child last (popped first); the depth is about log2(triangles / kLeafSize), far below the stack size.
 			const int left = stack[top] + 1;
 			const btScalar dl = boxDistance2(p, m_nodes[left].m_min, m_nodes[left].m_max);
 			const btScalar dr = boxDistance2(p, m_nodes[node.m_right].m_min, m_nodes[node.m_right].m_max);
