@@ -6,8 +6,9 @@ bodyfit: the skinned skin as a refitted triangle mesh. See btSkinMesh.h.
 
 namespace
 {
-/// Triangles per leaf of the tree.
-const int kLeafSize = 8;
+/// Triangles per leaf of the tree (at most). 4 against 8: the walk tights' skin-mesh response takes 10% fewer
+/// instructions, the refit 36% more, 8% fewer in all (callgrind, 40 steps, 2026-12-04); the answers are the same.
+const int kLeafSize = 4;
 } // namespace
 
 void btClosestOnTriangle(const btVector3& p, const btVector3& a, const btVector3& b, const btVector3& c,
@@ -246,13 +247,11 @@ namespace
 {
 btScalar boxDistance2(const btVector3& p, const btVector3& lo, const btVector3& hi)
 {
-	btScalar d2 = btScalar(0);
-	for (int k = 0; k < 3; ++k)
-	{
-		const btScalar d = p[k] < lo[k] ? lo[k] - p[k] : (p[k] > hi[k] ? p[k] - hi[k] : btScalar(0));
-		d2 += d * d;
-	}
-	return d2;
+	// Per axis the gap is lo - p below the box, p - hi above it (at most one of them is positive), else 0.
+	btVector3 gap = lo - p;
+	gap.setMax(p - hi);
+	gap.setMax(btVector3(0, 0, 0));
+	return gap.length2();
 }
 } // namespace
 
@@ -294,24 +293,31 @@ bool btSkinMesh::closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoi
 	// the answer, ties included, is the same as without it.
 	if (hint >= 0 && hint < getNumTriangles())
 		consider(p, hint, best2, out);
+	// The stack holds nodes with their box distances (computed once, when their parent is opened).
 	int stack[64];
+	btScalar stackDistance2[64];
 	int top = 0;
-	stack[top++] = 0;
+	stack[top] = 0;
+	stackDistance2[top++] = boxDistance2(p, m_nodes[0].m_min, m_nodes[0].m_max);
 	while (top > 0)
 	{
-		const Node& node = m_nodes[stack[--top]];
-		if (boxDistance2(p, node.m_min, node.m_max) > best2)
+		--top;
+		if (stackDistance2[top] > best2)
 			continue;
+		const Node& node = m_nodes[stack[top]];
 		if (node.m_right >= 0)
 		{
-			// Nearer child last (popped first); the depth is about log2(triangles / 8), far below the stack size.
-			const int left = int(&node - &m_nodes[0]) + 1;
+			// Nearer child last (popped first); the depth is about log2(triangles / kLeafSize), far below the stack size.
+			const int left = stack[top] + 1;
 			const btScalar dl = boxDistance2(p, m_nodes[left].m_min, m_nodes[left].m_max);
 			const btScalar dr = boxDistance2(p, m_nodes[node.m_right].m_min, m_nodes[node.m_right].m_max);
 			if (top + 2 > 64)
 				continue; // (unreachable for a median-split tree of < 2^60 triangles)
-			stack[top++] = dl <= dr ? node.m_right : left;
-			stack[top++] = dl <= dr ? left : node.m_right;
+			const bool leftFirst = dl <= dr;
+			stack[top] = leftFirst ? node.m_right : left;
+			stackDistance2[top++] = leftFirst ? dr : dl;
+			stack[top] = leftFirst ? left : node.m_right;
+			stackDistance2[top++] = leftFirst ? dl : dr;
 			continue;
 		}
 		for (int k = 0; k < node.m_count; ++k)
@@ -321,6 +327,99 @@ bool btSkinMesh::closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoi
 		return false;
 	out.m_distance = btSqrt(best2);
 	return true;
+}
+
+const btScalar btSkinMesh::kMinNormalCosine = btScalar(0.9);
+const btScalar btSkinMesh::kOnSkin = btScalar(1e-6);
+const btScalar btSkinMesh::kFoldDepth = btScalar(0.010);
+
+bool btSkinMesh::closestSide(const btVector3& p, btScalar radius, btSkinMeshPoint& near, btScalar& side, int hint) const
+{
+	if (!closestPoint(p, radius, near, hint))
+		return false;
+	const btVector3 n = getNormal(near.m_triangle);
+	if (n.length2() == btScalar(0))
+		return false; // a degenerate triangle
+	if (near.m_distance <= kOnSkin)
+	{
+		side = btScalar(0);
+		return true;
+	}
+	const btScalar along = (p - near.m_point).dot(n);
+	if (btFabs(along) < kMinNormalCosine * near.m_distance)
+		return false;
+	side = along > btScalar(0) ? near.m_distance : -near.m_distance;
+	return true;
+}
+
+bool btSkinMesh::sideContradicted(const btSkinMeshPoint& near, btScalar side) const
+{
+	return side > btScalar(0) && near.m_triangle >= 0 && otherSideWithin(near.m_point, kFoldDepth, btScalar(1));
+}
+
+bool btSkinMesh::signedDistance(const btVector3& p, btScalar radius, btSkinMeshPoint& near, btScalar& side,
+								int hint) const
+{
+	return closestSide(p, radius, near, side, hint) && !sideContradicted(near, side);
+}
+
+bool btSkinMesh::otherSideWithin(const btVector3& p, btScalar radius, btScalar sign) const
+{
+	if (m_nodes.size() == 0)
+		return false;
+	const btScalar radius2 = radius * radius;
+	int stack[64];
+	int top = 0;
+	if (boxDistance2(p, m_nodes[0].m_min, m_nodes[0].m_max) <= radius2)
+		stack[top++] = 0;
+	while (top > 0)
+	{
+		const int index = stack[--top];
+		const Node& node = m_nodes[index];
+		if (node.m_right >= 0)
+		{
+			// Only the children within the radius are pushed (a node on the stack is known to be).
+			if (top + 2 > 64)
+				continue; // (unreachable, as in closestPoint)
+			if (boxDistance2(p, m_nodes[node.m_right].m_min, m_nodes[node.m_right].m_max) <= radius2)
+				stack[top++] = node.m_right;
+			if (boxDistance2(p, m_nodes[index + 1].m_min, m_nodes[index + 1].m_max) <= radius2)
+				stack[top++] = index + 1;
+			continue;
+		}
+		for (int k = 0; k < node.m_count; ++k)
+			if (putsOnOtherSide(p, m_order[node.m_first + k], radius2, sign))
+				return true;
+	}
+	return false;
+}
+
+bool btSkinMesh::putsOnOtherSide(const btVector3& p, int t, btScalar radius2, btScalar sign) const
+{
+	// The closest point q lies in the triangle's plane, so (p - q).n is p's height h over the plane: the sign is
+	// trusted on the other side only when -sign h >= kMinNormalCosine |p - q| >= kMinNormalCosine |h|, which the
+	// height alone can rule out before q is computed.
+	const btVector3& a = vertex(t, 0);
+	const btVector3& b = vertex(t, 1);
+	const btVector3& c = vertex(t, 2);
+	btVector3 lo = a, hi = a;
+	lo.setMin(b);
+	lo.setMin(c);
+	hi.setMax(b);
+	hi.setMax(c);
+	if (boxDistance2(p, lo, hi) > radius2)
+		return false; // (the box holds the triangle)
+	const btVector3 cross = (b - a).cross(c - a);
+	const btScalar h = sign * m_orientation * (p - a).dot(cross); // (the height times |cross|)
+	if (!(h < btScalar(0)) || h * h > radius2 * cross.length2())
+		return false;
+	btScalar bary[3];
+	btClosestOnTriangle(p, a, b, c, bary);
+	const btScalar d2 = (p - (a * bary[0] + b * bary[1] + c * bary[2])).length2();
+	if (d2 > radius2 || d2 <= kOnSkin * kOnSkin)
+		return false;
+	// -h / |cross| >= kMinNormalCosine sqrt(d2), squared (both sides are positive)
+	return h * h >= kMinNormalCosine * kMinNormalCosine * d2 * cross.length2();
 }
 
 btVector3 btSkinMesh::previousPoint(const btSkinMeshPoint& point) const

@@ -6,7 +6,8 @@ or of another bone group): a node the union's swept broad phase kept is decided 
 which the skinning driver writes with the ellipsoids. Every case the mesh query cannot vouch for keeps the swept
 union response, the conservative one: no triangle within kSearchRadius, a closest-point direction far from the
 triangle's normal (the sign), an end deeper than kMaxDepth, a long relative path whose start is not outside or whose
-trace runs out of steps.
+trace runs out of steps, and a node left outside the nearest sheet whose closest skin point lies inside another part
+of the skin (btSkinMesh::sideContradicted: skinning pushes the skin into itself, e.g. an arm into the hip).
 
 Why the nearest skin is the skin the node met: the node starts outside the skin (the previous substep left it there)
 and its path relative to the skin under it (the start carried by the motion of its closest skin point) is at most
@@ -27,38 +28,18 @@ const btScalar kSearchRadius = btScalar(0.03);
 /// The longest node path relative to the skin under it, and the deepest end below the skin, that the mesh decides.
 const btScalar kMaxRelativePath = btScalar(0.010);
 const btScalar kMaxDepth = btScalar(0.010);
-/// The direction from the closest point to the node must be within acos(0.9) = 26 degrees of the triangle's normal
-/// for its sign to be trusted: exact at a face's interior point; at an edge or a corner the direction lies in the
-/// (outward or inward) cone of the normals of the faces there, so the sign agrees with the pseudo-normal unless two of
-/// those faces fold back by more than 154 degrees.
-const btScalar kMinNormalCosine = btScalar(0.9);
-/// Below this distance (metres) a point is on the skin: side 0, whatever the direction.
-const btScalar kOnSkin = btScalar(1e-6);
 /// A placed node lands this far (metres) above the skin offset (the distance is recomputed there; rounding of
 /// coordinates of a few metres in float is ~1e-6 m).
 const btScalar kLift = btScalar(1e-4);
 /// Projections onto the offset surface before a placement gives up (a crease: each step can meet another triangle).
 const int kMaxProjections = 4;
 
-/// The signed distance of p (body frame) to the skin: `near` its closest point; false when the sign is not trusted or
-/// no skin lies within kSearchRadius. `hint`: a triangle near p, or -1 (btSkinMesh::closestPoint).
+/// The signed distance of p (body frame) to the nearest sheet of skin within kSearchRadius (btSkinMesh::closestSide):
+/// the response decides on it, and checks the one position it leaves the node at against the other sheets
+/// (btSkinMesh::sideContradicted).
 bool signedSkinDistance(const btSkinMesh& mesh, const btVector3& p, btSkinMeshPoint& near, btScalar& side, int hint)
 {
-	if (!mesh.closestPoint(p, kSearchRadius, near, hint))
-		return false;
-	const btVector3 n = mesh.getNormal(near.m_triangle);
-	if (n.length2() == btScalar(0))
-		return false; // a degenerate triangle
-	if (near.m_distance <= kOnSkin)
-	{
-		side = btScalar(0);
-		return true;
-	}
-	const btScalar along = (p - near.m_point).dot(n);
-	if (btFabs(along) < kMinNormalCosine * near.m_distance)
-		return false;
-	side = along > btScalar(0) ? near.m_distance : -near.m_distance;
-	return true;
+	return mesh.closestSide(p, kSearchRadius, near, side, hint);
 }
 
 /// Steps of the sphere trace of a long relative path before it gives up (the union then decides).
@@ -73,8 +54,8 @@ bool traceOnSkin(const btSkinMesh& mesh, const btVector3& a, const btVector3& b,
 				 btSkinMeshPoint& near, bool& clear)
 {
 	btScalar side;
-	if (!signedSkinDistance(mesh, a, near, side, -1) || side < offset)
-		return false;
+	if (!signedSkinDistance(mesh, a, near, side, -1) || side < offset || mesh.sideContradicted(near, side))
+		return false; // (the path never comes within the offset of the skin: its end is on its start's side)
 	const btVector3 d = b - a;
 	const btScalar len = d.length();
 	btScalar s = btScalar(0), dist = side;
@@ -156,9 +137,13 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 	const btVector3 start = q + (m_currentPose * near.m_point - m_previousPose * mesh.previousPoint(near));
 	if ((node.m_x - start).length2() > kMaxRelativePath * kMaxRelativePath)
 		return traceLongPath(node, m_currentPose.invXform(start), substep);
-	++m_lastStats.m_skinMeshNodes;
 	if (side >= offset)
+	{
+		if (mesh.sideContradicted(near, side))
+			return false;
+		++m_lastStats.m_skinMeshNodes;
 		return true; // outside the skin by the offset: no contact
+	}
 	// Placement at the offset along the closest triangle's normal, repeated from there while another triangle is
 	// nearer (a crease).
 	const btScalar startSide = side;
@@ -167,11 +152,11 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 	{
 		p = near.m_point + mesh.getNormal(near.m_triangle) * (offset + kLift);
 		if (i == kMaxProjections || !signedSkinDistance(mesh, p, near, side, near.m_triangle))
-		{
-			--m_lastStats.m_skinMeshNodes;
 			return false;
-		}
 	}
+	if (mesh.sideContradicted(near, side))
+		return false;
+	++m_lastStats.m_skinMeshNodes;
 	if (startSide < btScalar(0))
 		++m_lastStats.m_nodesPushedOut;
 	else

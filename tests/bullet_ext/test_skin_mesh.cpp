@@ -72,6 +72,19 @@ btScalar bruteDistance(const btVector3& p, const std::vector<btVector3>& v, cons
 	return best;
 }
 
+/// Appends a closed axis-aligned box [lo, hi] as 12 triangles wound outwards.
+void box(const btVector3& lo, const btVector3& hi, std::vector<btVector3>& v, std::vector<int>& f)
+{
+	const int base = int(v.size());
+	for (int i = 0; i < 8; ++i)
+		v.push_back(btVector3((i & 1) ? hi.x() : lo.x(), (i & 2) ? hi.y() : lo.y(), (i & 4) ? hi.z() : lo.z()));
+	// Each face as a quad (a, b, c, d) counter-clockwise seen from outside.
+	const int quads[6][4] = {{0, 4, 6, 2}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}};
+	for (const auto& q : quads)
+		for (int k : {q[0], q[1], q[2], q[0], q[2], q[3]})
+			f.push_back(base + k);
+}
+
 } // namespace
 
 TEST_CASE("btClosestOnTriangle: corners, edges and the face", "[skin_mesh]")
@@ -166,4 +179,35 @@ TEST_CASE("btSkinMesh: refused inputs leave it empty with a one-line reason", "[
 	btSkinMeshPoint near;
 	CHECK_FALSE(mesh.closestPoint(btVector3(0, 0, 0), 1, near));
 	CHECK(near.m_triangle == -1);
+}
+
+TEST_CASE("btSkinMesh: the signed distance does not trust the nearest sheet inside another part", "[skin_mesh]")
+{
+	// In small, the walk's node inside the body (2026-12-04, walk tights, step 125): a "hip" box and an "arm" box
+	// pressed 1 mm into it, as skinning leaves them; p is 2.1 mm outside the hip's face, 3.1 mm inside the arm's
+	// inner face, so inside the arm. The nearest sheet (the hip's face) alone says outside.
+	const btScalar hipFace = btScalar(0.1);
+	const btVector3 p(hipFace + btScalar(0.0021), 0, 0);
+	for (btScalar armFace : {btScalar(0.099), btScalar(0.105)})
+	{
+		std::vector<btVector3> v;
+		std::vector<int> f;
+		box(btVector3(-0.1, -0.1, -0.1), btVector3(hipFace, 0.1, 0.1), v, f);
+		box(btVector3(armFace, -0.05, -0.05), btVector3(0.16, 0.05, 0.05), v, f);
+		btSkinMesh mesh;
+		REQUIRE(mesh.setTopology(int(v.size()), f.data(), int(f.size() / 3), v.data()));
+		btSkinMeshPoint near;
+		btScalar side = 0;
+		const bool trusted = mesh.signedDistance(p, btScalar(0.03), near, side);
+		REQUIRE(near.m_triangle >= 0);
+		CHECK(near.m_distance == Approx(0.0021).margin(1e-6)); // (float coordinates near 0.1 m: ~1e-8 m rounding)
+		if (armFace < hipFace)
+			CHECK_FALSE((trusted && side > 0)); // inside the arm: never outside (untrusted is the union's case)
+		else
+		{
+			// The arm 5 mm away: p lies between two sheets that both see it outside, so the sign stands.
+			CHECK(trusted);
+			CHECK(side == Approx(0.0021).margin(1e-6));
+		}
+	}
 }

@@ -366,14 +366,19 @@ TEST_CASE("bundled animated scenes: 0 nodes inside the skinned body at every sam
 
 TEST_CASE("a fast clip: the walk at 3x speed keeps 0 nodes inside the skinned body", "[animation][scene][runs]")
 {
-	Scene scene = loadScene(kWalkSkirt);
-	scene.body.animation->speed = 3.0;
-	scene.body.animation->loop = true;
-	const AnimatedRun r = runAnimated(scene, 120); // 1 s simulated = 3 s of the walk
-	CHECK(r.lastClipTime == Approx(3.0).margin(1e-9));
-	CHECK(r.maxInside == 0);
-	CHECK(r.nan == 0);
-	checkSurface(r);
+	for (const bool skinMesh : {false, true}) // the default, and the opt-in skinned mesh at the joints
+	{
+		INFO((skinMesh ? "with collider.skin_mesh" : "default"));
+		Scene scene = loadScene(kWalkSkirt);
+		scene.body.animation->speed = 3.0;
+		scene.body.animation->loop = true;
+		scene.collider.skinMesh = skinMesh;
+		const AnimatedRun r = runAnimated(scene, 120); // 1 s simulated = 3 s of the walk
+		CHECK(r.lastClipTime == Approx(3.0).margin(1e-9));
+		CHECK(r.maxInside == 0);
+		CHECK(r.nan == 0);
+		checkSurface(r);
+	}
 }
 
 TEST_CASE("another body: male_young's skirt on its own rig, the walk at 2x from mid-clip, looping",
@@ -429,36 +434,41 @@ bodyfit::AnimationClip kickClip(const bodyfit::Rig& rig)
 
 TEST_CASE("a faster, deeper clip than the bundled ones: the skirt under +-60 degree kicks", "[animation][scene][runs]")
 {
-	Scene scene = loadScene(kWalkSkirt);
-	scene.sampleEvery = 5;
-	BodyData body = loadBody(scene);
-	auto kicking = std::make_shared<AnimatedBodyData>(*body.animation);
-	auto rig = std::make_shared<bodyfit::Rig>(*kicking->rig);
-	rig->clips.push_back(kickClip(*rig));
-	kicking->clip = int(rig->clips.size()) - 1;
-	kicking->rig = rig;
-	body.animation = kicking;
-	DrapeSimulation sim(scene, body);
-	int maxInside = 0, nan = 0;
-	double maxDepth = 0.0, maxKneeTravel = 0.0;
-	const bodyfit::TriMesh bind = sim.bodyMeshWorld();
-	for (int k = 1; k <= 192; ++k) // the whole 1.6 s clip
+	for (const bool skinMesh : {false, true}) // the default, and the opt-in skinned mesh at the joints
 	{
-		sim.step();
-		if (k % 5 == 0)
+		INFO((skinMesh ? "with collider.skin_mesh" : "default"));
+		Scene scene = loadScene(kWalkSkirt);
+		scene.sampleEvery = 5;
+		scene.collider.skinMesh = skinMesh;
+		BodyData body = loadBody(scene);
+		auto kicking = std::make_shared<AnimatedBodyData>(*body.animation);
+		auto rig = std::make_shared<bodyfit::Rig>(*kicking->rig);
+		rig->clips.push_back(kickClip(*rig));
+		kicking->clip = int(rig->clips.size()) - 1;
+		kicking->rig = rig;
+		body.animation = kicking;
+		DrapeSimulation sim(scene, body);
+		int maxInside = 0, nan = 0;
+		double maxDepth = 0.0, maxKneeTravel = 0.0;
+		const bodyfit::TriMesh bind = sim.bodyMeshWorld();
+		for (int k = 1; k <= 192; ++k) // the whole 1.6 s clip
 		{
-			const ClothSample s = sim.sample();
-			maxInside = std::max(maxInside, s.insideBody);
-			nan = std::max(nan, s.nanNodes);
-			maxDepth = std::max(maxDepth, s.maxEllipsoidDepth);
-			maxKneeTravel = std::max(maxKneeTravel, (sim.bodyMeshWorld().V - bind.V).rowwise().norm().maxCoeff());
+			sim.step();
+			if (k % 5 == 0)
+			{
+				const ClothSample s = sim.sample();
+				maxInside = std::max(maxInside, s.insideBody);
+				nan = std::max(nan, s.nanNodes);
+				maxDepth = std::max(maxDepth, s.maxEllipsoidDepth);
+				maxKneeTravel = std::max(maxKneeTravel, (sim.bodyMeshWorld().V - bind.V).rowwise().norm().maxCoeff());
+			}
 		}
+		CHECK(maxKneeTravel > 0.4); // the clip is deep: a foot swings by more than 40 cm
+		CHECK(maxInside == 0);
+		CHECK(nan == 0);
+		if (!scene.collider.tightSurface) // the tight surface rests nodes inside the union (checkSurface)
+			CHECK(maxDepth < 1e-6);
 	}
-	CHECK(maxKneeTravel > 0.4); // the clip is deep: a foot swings by more than 40 cm
-	CHECK(maxInside == 0);
-	CHECK(nan == 0);
-	if (!scene.collider.tightSurface) // the tight surface rests nodes inside the union (checkSurface)
-		CHECK(maxDepth < 1e-6);
 }
 
 TEST_CASE("the tight surface on an animated body rests the cloth near the skin at the joints too", "[animation][scene][runs]")

@@ -42,6 +42,30 @@ public:
 	/// last answer for a point that moved little; -1 none) only starts the search with its distance, so fewer boxes
 	/// are opened.
 	bool closestPoint(const btVector3& p, btScalar radius, btSkinMeshPoint& out, int hint = -1) const;
+	/// The signed distance of p to the skin (positive outside), with `near` its closest point, when a triangle lies
+	/// within `radius` and the closest triangle's sign can be trusted: the direction from the closest point to p is
+	/// within acos(kMinNormalCosine) of that triangle's outward normal (or p is on the skin: side 0). \return false
+	/// otherwise (near still holds the closest point, if any). `hint` as closestPoint. It reads the nearest sheet
+	/// only: see sideContradicted for skin pushed into itself.
+	bool closestSide(const btVector3& p, btScalar radius, btSkinMeshPoint& near, btScalar& side, int hint = -1) const;
+	/// True when p, outside the nearest sheet by `side` > 0 with `near` its closest point (closestSide), is inside
+	/// another part of the skin all the same: where the skinned skin runs into itself (an arm pressed into the hip),
+	/// the nearest sheet can lie inside another part. Then so does p, for no skin comes between p and `near`; the
+	/// test is on `near`: a triangle within kFoldDepth of it puts it on its inner side with a trusted direction.
+	/// An inside claim (side <= 0) is not contradicted: a point inside the nearest sheet is inside the body.
+	bool sideContradicted(const btSkinMeshPoint& near, btScalar side) const;
+	/// closestSide, false also when sideContradicted.
+	bool signedDistance(const btVector3& p, btScalar radius, btSkinMeshPoint& near, btScalar& side,
+						int hint = -1) const;
+	/// The direction from a closest point to the query point must be within acos(0.9) = 26 degrees of the
+	/// triangle's normal for its sign to be trusted: exact at a face's interior point; at an edge or a corner the
+	/// direction lies in the (outward or inward) cone of the normals of the faces there, so the sign agrees with the
+	/// pseudo-normal unless two of those faces fold back by more than 154 degrees.
+	static const btScalar kMinNormalCosine;
+	/// Below this distance (metres) a point is on the skin: side 0, whatever the direction.
+	static const btScalar kOnSkin;
+	/// How far from the nearest skin point (metres) sideContradicted looks for a part it lies in.
+	static const btScalar kFoldDepth;
 	/// The same barycentric point in the previous pose.
 	btVector3 previousPoint(const btSkinMeshPoint& point) const;
 	/// Unit outward normal of a triangle in the current pose ((0, 0, 0) for a degenerate one).
@@ -72,6 +96,11 @@ private:
 	int build(int first, int count, const btAlignedObjectArray<btVector3>& centroids);
 	/// Takes triangle t as out's closest point when it is nearer than best2 (or as near, with a lower index).
 	void consider(const btVector3& p, int t, btScalar& best2, btSkinMeshPoint& out) const;
+	/// True when a triangle within `radius` of p puts p on the side opposite to `sign` (+1 outside, -1 inside)
+	/// with a trusted direction (within acos(kMinNormalCosine) of its normal, p not on it).
+	bool otherSideWithin(const btVector3& p, btScalar radius, btScalar sign) const;
+	/// Whether triangle t, if within radius2 (squared) of p, puts p on the side opposite to sign (otherSideWithin).
+	bool putsOnOtherSide(const btVector3& p, int t, btScalar radius2, btScalar sign) const;
 	/// The leaves' corner lists (m_leafVertices), once after build().
 	void collectLeafVertices();
 	const btVector3& vertex(int t, int corner) const { return m_poses[m_current][m_triangles[3 * t + corner]]; }
