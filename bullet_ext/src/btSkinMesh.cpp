@@ -253,6 +253,18 @@ btScalar boxDistance2(const btVector3& p, const btVector3& lo, const btVector3& 
 	gap.setMax(btVector3(0, 0, 0));
 	return gap.length2();
 }
+
+/// Squared distance from p to the box of the triangle a b c (0 inside it): the box holds the triangle, so no point
+/// of the triangle is nearer.
+btScalar triangleBoxDistance2(const btVector3& p, const btVector3& a, const btVector3& b, const btVector3& c)
+{
+	btVector3 lo = a, hi = a;
+	lo.setMin(b);
+	lo.setMin(c);
+	hi.setMax(b);
+	hi.setMax(c);
+	return boxDistance2(p, lo, hi);
+}
 } // namespace
 
 void btSkinMesh::consider(const btVector3& p, int t, btScalar& best2, btSkinMeshPoint& out) const
@@ -260,13 +272,8 @@ void btSkinMesh::consider(const btVector3& p, int t, btScalar& best2, btSkinMesh
 	const btVector3& a = vertex(t, 0);
 	const btVector3& b = vertex(t, 1);
 	const btVector3& c = vertex(t, 2);
-	btVector3 lo = a, hi = a;
-	lo.setMin(b);
-	lo.setMin(c);
-	hi.setMax(b);
-	hi.setMax(c);
-	if (boxDistance2(p, lo, hi) > best2)
-		return; // (the box holds the triangle: it cannot be nearer)
+	if (triangleBoxDistance2(p, a, b, c) > best2)
+		return;
 	btScalar bary[3];
 	btClosestOnTriangle(p, a, b, c, bary);
 	const btVector3 q = a * bary[0] + b * bary[1] + c * bary[2];
@@ -402,13 +409,8 @@ bool btSkinMesh::putsOnOtherSide(const btVector3& p, int t, btScalar radius2, bt
 	const btVector3& a = vertex(t, 0);
 	const btVector3& b = vertex(t, 1);
 	const btVector3& c = vertex(t, 2);
-	btVector3 lo = a, hi = a;
-	lo.setMin(b);
-	lo.setMin(c);
-	hi.setMax(b);
-	hi.setMax(c);
-	if (boxDistance2(p, lo, hi) > radius2)
-		return false; // (the box holds the triangle)
+	if (triangleBoxDistance2(p, a, b, c) > radius2)
+		return false;
 	const btVector3 cross = (b - a).cross(c - a);
 	const btScalar h = sign * m_orientation * (p - a).dot(cross); // (the height times |cross|)
 	if (!(h < btScalar(0)) || h * h > radius2 * cross.length2())
