@@ -193,6 +193,7 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_skinMeshHints(0),
 	  m_liftedNodes(0),
 	  m_contactNodeBase(0),
+	  m_contactRecord(0),
 	  m_boneFields(false),
 	  m_skinGroup(-1),
 	  m_skinMesh(0),
@@ -419,6 +420,7 @@ void btEllipsoidClothColliderCore::beginContactRecord(const btSoftBody* softBody
 	record.m_lifted.resize(n, 0);
 	m_liftedNodes = n > 0 ? &record.m_lifted[0] : 0;
 	m_contactNodeBase = n > 0 ? &softBody->m_nodes[0] : 0;
+	m_contactRecord = &record;
 }
 
 void btEllipsoidClothColliderCore::dropStaleContactRecords()
@@ -481,6 +483,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 		m_escapeHints = 0;
 		m_skinMeshHints = 0;
 		m_liftedNodes = 0;
+		m_contactRecord = 0;
 		return;
 	}
 	Substep substep(m_current, btMax(m_config.m_skinOffset, btScalar(0)), dt, m_sweepOnGrid ? &m_sweep : 0,
@@ -534,6 +537,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	m_escapeHints = 0;
 	m_skinMeshHints = 0;
 	m_liftedNodes = 0;
+	m_contactRecord = 0;
 	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
 	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
 }
@@ -723,7 +727,7 @@ void btEllipsoidClothColliderCore::leavePocket(btSoftBody::Node& node, const Sub
 	if (hint && m_pushOut.escapesAlongHint(m_current, x, *hint))
 		return; // (the common case: the ray that left last time leaves again)
 	btPushOutResult out;
-	m_pushOut.leaveEnclosedPocket(m_current, x, substep.m_skin, out, hint);
+	m_pushOut.leavePocketPastHint(m_current, x, substep.m_skin, out, hint);
 	if (!out.m_moved)
 		return;
 	++m_lastStats.m_nodesPushedOut;

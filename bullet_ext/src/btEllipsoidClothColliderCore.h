@@ -169,8 +169,10 @@ private:
 	int* m_skinMeshHints;                      ///< that soft body's skin-mesh hints (0 outside collide())
 	unsigned char* m_liftedNodes;              ///< that soft body's lifted-node marks (0 outside collide())
 	const btSoftBody::Node* m_contactNodeBase; ///< node 0 of that soft body
+	ContactRecord* m_contactRecord;            ///< that soft body's record (0 outside collide())
 	btAlignedObjectArray<btVector3> m_edgeLift;    ///< liftEdgesOffSkin: per node, the largest rise its edges ask
-	btAlignedObjectArray<btScalar> m_edgeLiftSize; ///< ... and its length (0: none; 0 for every node between calls)
+	/// ... and its length, kept as asked (the comparisons use it exactly; 0: none; 0 for every node between calls)
+	btAlignedObjectArray<btScalar> m_edgeLiftSize;
 	btAlignedObjectArray<int> m_edgeActive;        ///< liftEdgesOffSkin: nodes in contact or lifted in the last substep
 	btAlignedObjectArray<int> m_edgeRaised;        ///< liftEdgesOffSkin: nodes some edge asked to rise
 

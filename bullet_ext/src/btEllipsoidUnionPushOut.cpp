@@ -117,23 +117,40 @@ void btEllipsoidUnionPushOut::finishExit(const btVector3& point, const btVector3
 	}
 }
 
-void btEllipsoidUnionPushOut::leaveEnclosedPocket(const btEllipsoidWorldCache& cache, const btVector3& from,
-												  btScalar skin, btPushOutResult& out, unsigned char* hint)
+namespace
 {
-	m_cache = &cache;
+/// The escape test's result before anything moves: `from` kept, no ellipsoid, zeta not computed (the caller only reads
+/// it after a move).
+void staysInPlace(const btVector3& from, btPushOutResult& out)
+{
 	out.m_moved = false;
 	out.m_enclosed = false;
 	out.m_fallback = false;
 	out.m_ellipsoid = -1;
 	out.m_point = from;
-	out.m_zeta = SIMD_INFINITY; // (not computed when nothing moves: the caller only reads it after a move)
-	// The ray that left last time first (a resting node mostly leaves the same way every substep), then the axis rays
-	// on the bins (cheap), then the full test when all six are blocked (or the bins are not ready).
-	const bool binsReady = m_escapeRaysCache == &cache && m_escapeRaysCount == cache.size();
-	const int hinted = hint ? int(*hint) : int(kNoEscapeHint);
-	if ((binsReady || hinted >= kLatticeHint) && hintedRayEscapes(hinted, from))
+	out.m_zeta = SIMD_INFINITY;
+}
+} // namespace
+
+void btEllipsoidUnionPushOut::leaveEnclosedPocket(const btEllipsoidWorldCache& cache, const btVector3& from,
+												  btScalar skin, btPushOutResult& out, unsigned char* hint)
+{
+	// The ray that left last time first (a resting node mostly leaves the same way every substep), then the rest.
+	if (escapesAlongHint(cache, from, hint ? int(*hint) : int(kNoEscapeHint)))
+	{
+		staysInPlace(from, out);
 		return;
-	int escaped = binsReady ? someAxisRayEscapes(from) : int(kNoEscapeHint);
+	}
+	leavePocketPastHint(cache, from, skin, out, hint);
+}
+
+void btEllipsoidUnionPushOut::leavePocketPastHint(const btEllipsoidWorldCache& cache, const btVector3& from,
+												  btScalar skin, btPushOutResult& out, unsigned char* hint)
+{
+	m_cache = &cache;
+	staysInPlace(from, out);
+	// The axis rays on the bins (cheap), then the full test when all six are blocked (or the bins are not ready).
+	int escaped = binsReadyFor(cache) ? someAxisRayEscapes(from) : int(kNoEscapeHint);
 	int lattice = -2;
 	if (escaped == kNoEscapeHint && escapesUnion(from, latticeDirection(0), &lattice))
 		escaped = kLatticeHint + btMax(lattice, 0); // (the preferred direction here is lattice direction 0)
@@ -464,9 +481,7 @@ bool btEllipsoidUnionPushOut::rayEscapes(const btVector3& p, const btVector3& di
 
 bool btEllipsoidUnionPushOut::escapesAlongHint(const btEllipsoidWorldCache& cache, const btVector3& from, int hint)
 {
-	// (As leaveEnclosedPocket's first test.)
-	const bool binsReady = m_escapeRaysCache == &cache && m_escapeRaysCount == cache.size();
-	if (!(binsReady || hint >= kLatticeHint))
+	if (!(binsReadyFor(cache) || hint >= kLatticeHint))
 		return false;
 	m_cache = &cache;
 	return hintedRayEscapes(hint, from);

@@ -51,9 +51,13 @@ public:
 							 btPushOutResult& out, unsigned char* hint = 0);
 
 	/// The first step of leaveEnclosedPocket alone: true when the ray `hint` names leaves the union from `from` (then
-	/// leaveEnclosedPocket would move nothing and keep the hint); false decides nothing (call leaveEnclosedPocket).
+	/// leaveEnclosedPocket would move nothing and keep the hint); false decides nothing (call leavePocketPastHint).
 	/// Most calls of a substep end here, without the result record.
 	bool escapesAlongHint(const btEllipsoidWorldCache& cache, const btVector3& from, int hint);
+	/// The rest of leaveEnclosedPocket, for a caller whose escapesAlongHint just returned false (the hinted ray is not
+	/// tested again).
+	void leavePocketPastHint(const btEllipsoidWorldCache& cache, const btVector3& from, btScalar skin,
+							 btPushOutResult& out, unsigned char* hint);
 
 	/// Escape hints: 0 none; 1 + 2 k + (1 for -e_k) an axis ray; kLatticeHint + d lattice direction d (0..25).
 	enum
@@ -104,6 +108,11 @@ private:
 	int m_escapeRaysCount;                          ///< its size then
 	btAlignedObjectArray<int> m_binFill;            ///< scratch of prepareEscapeRays
 	btAlignedObjectArray<int> m_binRanges;          ///< scratch of buildAxisBins: each ellipsoid's bins, 4 ints
+	/// The axis-ray bins were built for this cache in its current state (prepareEscapeRays).
+	bool binsReadyFor(const btEllipsoidWorldCache& cache) const
+	{
+		return m_escapeRaysCache == &cache && m_escapeRaysCount == cache.size();
+	}
 	btAlignedObjectArray<btScalar> m_intervals; ///< chord of ellipsoid m_intervalOwner[i] along the current ray:
 												///< [2i] start, [2i + 1] end (widened by the skin), sorted by start
 	btAlignedObjectArray<int> m_intervalOwner;

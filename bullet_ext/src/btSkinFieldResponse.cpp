@@ -381,11 +381,7 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
 	// (each point of the move is within offset / L of an end): the lifted node's path stays outside the skin.
 	const btScalar maxMove = btScalar(2) * geometry.offset() / field.getLipschitz();
 	const btScalar floor = geometry.offset() - geometry.tolerance();
-	ContactRecord* record = 0;
-	for (int r = 0; r < m_contactRecords.size() && !record; ++r)
-		if (m_contactRecords[r].m_softBody == softBody)
-			record = &m_contactRecords[r];
-	btAssert(record); // collide() began it
+	ContactRecord* record = m_contactRecord; // (collide() began it)
 	const bool relisted = record->listEdges(*softBody);
 	const int numEdges = record->m_edgeLinks.size();
 	if (relisted || m_moving || record->m_edgeRevision != m_compound->getAnalyticRevision() ||

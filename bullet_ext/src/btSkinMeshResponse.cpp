@@ -34,14 +34,6 @@ const btScalar kLift = btScalar(1e-4);
 /// Projections onto the offset surface before a placement gives up (a crease: each step can meet another triangle).
 const int kMaxProjections = 4;
 
-/// The signed distance of p (body frame) to the nearest sheet of skin within kSearchRadius (btSkinMesh::closestSide):
-/// the response decides on it, and checks the one position it leaves the node at against the other sheets
-/// (btSkinMesh::sideContradicted).
-bool signedSkinDistance(const btSkinMesh& mesh, const btVector3& p, btSkinMeshPoint& near, btScalar& side, int hint)
-{
-	return mesh.closestSide(p, kSearchRadius, near, side, hint);
-}
-
 /// Steps of the sphere trace of a long relative path before it gives up (the union then decides).
 const int kMaxTraceSteps = 32;
 
@@ -54,7 +46,7 @@ bool traceOnSkin(const btSkinMesh& mesh, const btVector3& a, const btVector3& b,
 				 btSkinMeshPoint& near, bool& clear)
 {
 	btScalar side;
-	if (!signedSkinDistance(mesh, a, near, side, -1) || side < offset || mesh.sideContradicted(near, side))
+	if (!mesh.closestSide(a, kSearchRadius, near, side) || side < offset || mesh.sideContradicted(near, side))
 		return false; // (the path never comes within the offset of the skin: its end is on its start's side)
 	const btVector3 d = b - a;
 	const btScalar len = d.length();
@@ -126,7 +118,8 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 	btSkinMeshPoint near;
 	btScalar side;
 	int* hint = m_skinMeshHints ? &m_skinMeshHints[&node - m_contactNodeBase] : 0;
-	const bool signedNear = signedSkinDistance(mesh, m_currentPose.invXform(node.m_x), near, side, hint ? *hint : -1);
+	const bool signedNear =
+		mesh.closestSide(m_currentPose.invXform(node.m_x), kSearchRadius, near, side, hint ? *hint : -1);
 	if (hint)
 		*hint = near.m_triangle; // (-1 when no skin is near)
 	if (!signedNear)
@@ -151,7 +144,7 @@ bool btEllipsoidClothColliderCore::collideOnSkinMesh(btSoftBody::Node& node, con
 	for (int i = 0; side < offset; ++i)
 	{
 		p = near.m_point + mesh.getNormal(near.m_triangle) * (offset + kLift);
-		if (i == kMaxProjections || !signedSkinDistance(mesh, p, near, side, near.m_triangle))
+		if (i == kMaxProjections || !mesh.closestSide(p, kSearchRadius, near, side, near.m_triangle))
 			return false;
 	}
 	if (mesh.sideContradicted(near, side))
