@@ -143,6 +143,8 @@ bool btEllipsoidClothCollider::validateConfig(const Config& config, const char**
 		e = "btEllipsoidClothCollider::Config: m_velocityRule is not a VelocityRule";
 	else if (config.m_surface != TIGHT_SKIN && config.m_surface != ELLIPSOIDS)
 		e = "btEllipsoidClothCollider::Config: m_surface is not a SurfaceMode";
+	else if (!(config.m_liftClearance > btScalar(0) && config.m_liftClearance <= btScalar(1)))
+		e = "btEllipsoidClothCollider::Config: m_liftClearance must be in (0, 1] (a fraction of m_skinOffset)";
 	else if (skin > btScalar(0.05))
 		w = "btEllipsoidClothCollider::Config: m_skinOffset above 5 cm is implausible for cloth (metres, not mm?)";
 	else if (friction > btScalar(2))
@@ -531,7 +533,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 		}
 		stats.m_minZeta = minZeta;
 		if (m_skinGeometry.field() && m_config.m_liftEdges)
-			liftEdgesOffSkin(softBody);
+			liftEdgesOffSkin(softBody, startPositions, substep);
 	}
 	m_contactFlags = 0;
 	m_escapeHints = 0;

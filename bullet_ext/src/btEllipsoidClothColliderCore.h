@@ -262,14 +262,20 @@ private:
 	/// Config::m_liftEdges, after the node responses of a substep that did not sweep: every cloth edge at a node in
 	/// contact (this substep, or lifted in the last) whose midpoint lies within half the skin offset of the skin asks
 	/// its nodes to rise along the field's gradient there, split by inverse mass; each node takes the largest rise its
-	/// edges ask (capped at 2 offset / L), only between points at the skin offset or more.
-	void liftEdgesOffSkin(btSoftBody* softBody);
+	/// edges ask (capped at 2 offset / L), only between points at the skin offset or more, and is then held as a
+	/// contact is (holdLiftedNode). `startPositions` as for collide().
+	void liftEdgesOffSkin(btSoftBody* softBody, const btVector3* startPositions, const Substep& substep);
 	/// liftEdgesOffSkin's nodes whose edges are looked at (m_edgeActive): in contact this substep, or lifted in the
 	/// last (a lifted node rests above the offset, where its own path no longer meets the surface).
 	void listEdgeNodes(int numNodes);
 	/// liftEdgesOffSkin's last step: each node some edge asked to rise (m_edgeRaised) rises by the largest ask when it
 	/// is at field >= floor and would be there after (else it stays); lifted nodes are marked and flagged as contacts.
-	void raiseEdgeNodes(btSoftBody* softBody, btScalar floor);
+	void raiseEdgeNodes(btSoftBody* softBody, btScalar floor, const btVector3* startPositions, const Substep& substep);
+	/// A node its edges lifted along `up` (unit) is held there as on a surface, with the contact's velocity rule
+	/// (setContactVelocity: its velocity into the skin removed, Coulomb friction, no speed beyond its real motion from
+	/// `start`, the reaction to a dynamic body). Else Bullet's next prediction carries it back in with the velocity its
+	/// links gave it, the lift lifts it again every substep, and the cloth never settles.
+	void holdLiftedNode(btSoftBody::Node& node, const btVector3& up, const btVector3& start, const Substep& substep);
 	/// One edge (link `link`, nodes ia, ib) of liftEdgesOffSkin: its midpoint read on the field unless the last
 	/// reading (lastMid, reach2) still holds; below the clearance, each node's rise (m_edgeLift) raised to what it asks.
 	void liftEdge(btSoftBody* softBody, int link, int ia, int ib, btVector3& lastMid, btScalar& reach2,

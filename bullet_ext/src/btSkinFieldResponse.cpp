@@ -367,13 +367,15 @@ inline std::uint64_t readWord(const unsigned char* p)
 }
 } // namespace
 
-void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
+void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody, const btVector3* startPositions,
+													 const Substep& substep)
 {
 	const btSkinFieldGeometry& geometry = m_skinGeometry;
 	const btSkinDistanceField& field = *geometry.field();
-	// Edges clear the skin by half the skin offset: an edge at the offset on a flat skin is untouched, and the lift
-	// raises its nodes only by what the edge's sag over a curved skin takes below that.
-	const btScalar clearance = btScalar(0.5) * geometry.offset();
+	// Edges clear the skin by a fraction of the skin offset (Config::m_liftClearance, below 1): an edge at the offset
+	// on a flat skin is untouched, and the lift raises its nodes only by what the edge's sag over a curved skin takes
+	// below that.
+	const btScalar clearance = m_config.m_liftClearance * geometry.offset();
 	const int numNodes = softBody->m_nodes.size();
 	if (!(clearance > btScalar(0)) || numNodes == 0)
 		return;
@@ -417,7 +419,7 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
 	}
 	for (int k = 0; k < m_edgeActive.size(); ++k)
 		m_liftedNodes[m_edgeActive[k]] = 0;
-	raiseEdgeNodes(softBody, floor);
+	raiseEdgeNodes(softBody, floor, startPositions, substep);
 }
 
 void btEllipsoidClothColliderCore::listEdgeNodes(int numNodes)
@@ -436,7 +438,8 @@ void btEllipsoidClothColliderCore::listEdgeNodes(int numNodes)
 	}
 }
 
-void btEllipsoidClothColliderCore::raiseEdgeNodes(btSoftBody* softBody, btScalar floor)
+void btEllipsoidClothColliderCore::raiseEdgeNodes(btSoftBody* softBody, btScalar floor, const btVector3* startPositions,
+												   const Substep& substep)
 {
 	const btSkinFieldGeometry& geometry = m_skinGeometry;
 	const btSkinDistanceField& field = *geometry.field();
@@ -449,10 +452,26 @@ void btEllipsoidClothColliderCore::raiseEdgeNodes(btSoftBody* softBody, btScalar
 		if (field.distance(geometry.toBody() * x) < floor || field.distance(geometry.toBody() * base[i].m_x) < floor)
 			continue;
 		base[i].m_x = x;
+		// Where the node started the substep, carried with the body as collide() carries it.
+		const btVector3 start = m_moving ? m_delta * (startPositions ? startPositions[i] : base[i].m_q)
+										 : (startPositions ? startPositions[i] : base[i].m_q);
+		holdLiftedNode(base[i], m_edgeLift[i].normalized(), start, substep);
 		m_liftedNodes[i] = 1;
 		m_contactFlags[i] = 1;
 		++m_lastStats.m_nodesLifted;
 	}
+}
+
+void btEllipsoidClothColliderCore::holdLiftedNode(btSoftBody::Node& node, const btVector3& up, const btVector3& start,
+												   const Substep& substep)
+{
+	const btVector3 bodyVelocity = bodyVelocityAt(node.m_x, -1, substep.m_dt);
+	const btVector3 before = node.m_v; // (a copy: setContactVelocity writes m_v before the reaction reads `before`)
+	btNodeContacts contacts;
+	contacts.add(up);
+	const btVector3 vr = btRelativeVelocityAfterContact(REMOVE_NORMAL_COULOMB, substep.m_friction,
+														node.m_v - bodyVelocity, contacts, node.m_x, start, node.m_x);
+	setContactVelocity(node, vr, up, start, bodyVelocity, before, node.m_x, substep.m_dt);
 }
 
 void btEllipsoidClothColliderCore::liftEdge(btSoftBody* softBody, int link, int ia, int ib, btVector3& lastMid,

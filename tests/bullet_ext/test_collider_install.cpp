@@ -165,6 +165,16 @@ TEST_CASE("install: Config is validated (non-finite and out of range refused, im
 	CHECK(btEllipsoidClothCollider::validateConfig(c, &error, &warning));
 	REQUIRE(warning != nullptr);
 	CHECK(std::string(warning).find("5 cm") != std::string::npos);
+	for (const btScalar clearance : {btScalar(0), btScalar(-0.5), btScalar(1.5), nan})
+	{
+		c = Config();
+		c.m_liftClearance = clearance;
+		CHECK_FALSE(btEllipsoidClothCollider::validateConfig(c, &error, &warning));
+		CHECK(std::string(error).find("m_liftClearance") != std::string::npos);
+	}
+	c = Config();
+	c.m_liftClearance = btScalar(1); // the whole offset: edges as far from the skin as the nodes
+	CHECK(btEllipsoidClothCollider::validateConfig(c, &error, &warning));
 
 	// install refuses, setConfig refuses and keeps the old Config.
 	ClothScene scene(ball());

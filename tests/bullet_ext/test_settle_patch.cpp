@@ -1,10 +1,10 @@
-// Settling of SoftDemo-like cloth on a fitted body (issue 12 item 1), hidden (tag [.settle]; 20-60 s each):
+// Settling of SoftDemo-like cloth on a fitted body (issue 12 item 1), tag [settle] (a few seconds in a Release build):
 // Bullet's SoftDemo cloth setup (btSoftBodyHelpers::CreatePatch, kLST 0.4, bending constraints of distance 2,
 // Bullet's default iteration counts and aero model, 60 Hz with one substep) over the head of female_young.obj with its
 // bundled fit: a 60 x 60 patch pinned at its four corners, and the same 3,600-node patch free. Prints the mean node
 // speed from positions and the largest |m_v| above a node's actual speed per 0.5 s, the speeds of the nodes on the
 // body and of those hanging free, and checks the goals the collider owns (see the notes above the test cases).
-//   build/tests/tests_bullet_ext "[.settle]"
+//   build/tests/tests_bullet_ext "[settle]"
 #include "support/fitted_body.h"
 #include "support/settle_meter.h"
 
@@ -124,14 +124,14 @@ SettleResult runPatch(bool pinCorners, double seconds)
 // physical. Friction is Bullet's own combination for these defaults, kDF 0.2 x body friction 0.5 = 0.1, which cannot
 // hold the hanging weight: the cloth slides off the head (real motion, measured from positions). What the collider
 // owns is asserted: m_v never more than 0.5 m/s above the real motion after landing.
-TEST_CASE("settle: SoftDemo-like 60 x 60 patch pinned at four corners over the head", "[.settle][collider]")
+TEST_CASE("settle: SoftDemo-like 60 x 60 patch pinned at four corners over the head", "[settle][collider]")
 {
 	const SettleResult r = runPatch(true, 6.0);
 	REQUIRE(r.landing > 0);
 	CHECK(r.worstExcess < 0.5);
 }
 
-TEST_CASE("settle: SoftDemo-like free 3,600-node patch over the head", "[.settle][collider]")
+TEST_CASE("settle: SoftDemo-like free 3,600-node patch over the head", "[settle][collider]")
 {
 	const SettleResult r = runPatch(false, 6.0);
 	REQUIRE(r.landing > 0);

@@ -27,7 +27,7 @@ json validDocument()
 		"body": {"mesh": "MESH", "fit": {"mu_torso": 0.01}, "up": "y", "scale": 1.0},
 		"collider": {"kind": "mesh-bvh", "skin_offset_m": 0.003, "sdf_voxel_m": 0.03, "shape_margin_m": 0.002,
 					 "contact_hardness": 0.8, "surface": "ellipsoids", "skin_mesh": true,
-					 "lift_edges": false},
+					 "lift_edges": false, "lift_clearance": 0.25},
 		"garment": {"type": "patch", "size_m": [1.2, 0.8], "resolution": [21, 11], "center": [0, 1.5, 0.1]},
 		"material": {"stretch": 0.7, "bending": 0.1, "damping": 0.05, "mass_kg": 0.4, "margin_m": 0.006},
 		"solver": {"dt": 0.01, "substeps": 2, "iterations": 12, "steps": 50},
@@ -78,6 +78,7 @@ TEST_CASE("a scene with every section parses to the given values", "[scene]")
 	CHECK_FALSE(s.collider.tightSurface);
 	CHECK(s.collider.skinMesh);
 	CHECK_FALSE(s.collider.liftEdges);
+	CHECK(s.collider.liftClearance == 0.25);
 	CHECK(s.garment.type == GarmentType::Patch);
 	CHECK(s.garment.resolution == Eigen::Vector2i(21, 11));
 	CHECK(s.garment.size == Eigen::Vector2d(1.2, 0.8));
@@ -182,6 +183,8 @@ TEST_CASE("every bad value is an error naming the file and the key path", "[scen
 		{"/collider/surface", "skin", "collider.surface: 'skin' is not one of tight, ellipsoids"},
 		{"/collider/skin_mesh", 1, "collider.skin_mesh: expected true or false"},
 		{"/collider/lift_edges", "yes", "collider.lift_edges: expected true or false"},
+		{"/collider/lift_clearance", 0, "collider.lift_clearance: value 0 is outside (0, 1]"},
+		{"/collider/lift_clearance", 1.5, "collider.lift_clearance: value 1.5 is outside (0, 1]"},
 		{"/garment/type", "dress", "garment.type: 'dress' is not one of patch, bullet_patch, skirt, tights, tube"},
 		{"/garment/size_m", json::array({1.0}), "garment.size_m: expected an array of 2 numbers"},
 		{"/garment/size_m", json::array({1.0, -1.0}), "garment.size_m[1]: value -1 is outside"},

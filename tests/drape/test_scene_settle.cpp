@@ -1,8 +1,9 @@
-// Settling of the bundled tablecloth (demos/scenes/tablecloth_shoulders.json, issue 12 item 1), hidden (tag
-// [.settle]; about a minute): per scene step the mean node speed from positions and the largest |m_v| above a node's
+// Settling of the bundled tablecloth (demos/scenes/tablecloth_shoulders.json, issue 12 item 1; tag [settle], a few
+// seconds in a Release build, part of the default run since session 9 of round 2, when the edge lift had broken it
+// unseen while the tag hid it): per scene step the mean node speed from positions and the largest |m_v| above a node's
 // actual speed; checks that after landing no node's |m_v| is more than 0.5 m/s above its actual speed and that the
 // cloth comes to rest (mean speed < 5 mm/s) within 3 s of landing.
-//   build/tests/tests_drape "[.settle]"
+//   build/tests/tests_drape "[settle]"
 #include "bodyfit/bullet_ext/btEllipsoidClothCollider.h"
 #include "bodyfit/drape/simulation.h"
 #include "support/settle_meter.h"
@@ -13,7 +14,7 @@
 
 using namespace bodyfit::drape;
 
-TEST_CASE("settle: the bundled tablecloth comes to rest on the head and shoulders", "[.settle][scene]")
+TEST_CASE("settle: the bundled tablecloth comes to rest on the head and shoulders", "[settle][scene]")
 {
 	Scene scene = loadScene(std::string(BODYFIT_SCENE_DIR) + "/tablecloth_shoulders.json");
 	// One Bullet step per scene step of dt / substeps: the same run (a scene step is `substeps` such steps, each

@@ -324,6 +324,7 @@ ColliderSpec parseCollider(const json& j, ObjectReader& top)
 	c.tightSurface = r.string("surface", "tight", {"tight", "ellipsoids"}) == "tight";
 	c.skinMesh = r.boolean("skin_mesh", c.skinMesh);
 	c.liftEdges = r.boolean("lift_edges", c.liftEdges);
+	c.liftClearance = r.number("lift_clearance", c.liftClearance, 0.0, 1.0, true);
 	r.finish();
 	return c;
 }

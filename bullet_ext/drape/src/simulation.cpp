@@ -644,6 +644,7 @@ void DrapeSimulation::installCollider(bool refuseFarFromOrigin)
 	cfg.m_friction = btScalar(scene_.effects.friction ? scene_.effects.friction->coefficient : 0.0);
 	cfg.m_surface = scene_.collider.tightSurface ? btEllipsoidClothCollider::TIGHT_SKIN : btEllipsoidClothCollider::ELLIPSOIDS;
 	cfg.m_liftEdges = scene_.collider.liftEdges;
+	cfg.m_liftClearance = btScalar(scene_.collider.liftClearance);
 	const char* why = nullptr;
 	btEllipsoidClothSoftBodySolver* solver = static_cast<btEllipsoidClothSoftBodySolver*>(impl_->softSolver.get());
 	collider_ = solver->installCollider(impl_->world.get(), impl_->bodyObject.get(), cfg, &why);

@@ -88,6 +88,8 @@ struct ColliderSpec
 	/// ellipsoids, tight surface, body at rest or moving rigidly: lift cloth edges off the skin (Config::m_liftEdges;
 	/// default true; false keeps nodes at the skin offset, and long edges over curved skin then sag into it).
 	bool liftEdges = true;
+	/// how far lifted edges clear the skin, a fraction of the skin offset in (0, 1] (Config::m_liftClearance)
+	double liftClearance = 0.5;
 };
 
 enum class GarmentType
