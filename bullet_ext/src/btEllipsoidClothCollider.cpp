@@ -193,7 +193,8 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_contactFlags(0),
 	  m_escapeHints(0),
 	  m_skinMeshHints(0),
-	  m_liftedNodes(0),
+	  m_nodeRise(0),
+	  m_skinLevel(0),
 	  m_contactNodeBase(0),
 	  m_contactRecord(0),
 	  m_boneFields(false),
@@ -419,8 +420,8 @@ void btEllipsoidClothColliderCore::beginContactRecord(const btSoftBody* softBody
 	m_escapeHints = n > 0 ? &record.m_escapeHints[0] : 0;
 	record.m_skinMeshHints.resize(n, -1);
 	m_skinMeshHints = n > 0 ? &record.m_skinMeshHints[0] : 0;
-	record.m_lifted.resize(n, 0);
-	m_liftedNodes = n > 0 ? &record.m_lifted[0] : 0;
+	record.m_rise.resize(n, btScalar(0));
+	m_nodeRise = n > 0 ? &record.m_rise[0] : 0;
 	m_contactNodeBase = n > 0 ? &softBody->m_nodes[0] : 0;
 	m_contactRecord = &record;
 }
@@ -484,7 +485,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 		m_contactFlags = 0;
 		m_escapeHints = 0;
 		m_skinMeshHints = 0;
-		m_liftedNodes = 0;
+		m_nodeRise = 0;
 		m_contactRecord = 0;
 		return;
 	}
@@ -533,12 +534,12 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 		}
 		stats.m_minZeta = minZeta;
 		if (m_skinGeometry.field() && m_config.m_liftEdges)
-			liftEdgesOffSkin(softBody, startPositions, substep);
+			liftEdgesOffSkin(softBody);
 	}
 	m_contactFlags = 0;
 	m_escapeHints = 0;
 	m_skinMeshHints = 0;
-	m_liftedNodes = 0;
+	m_nodeRise = 0;
 	m_contactRecord = 0;
 	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
 	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;

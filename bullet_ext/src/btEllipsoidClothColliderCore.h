@@ -106,7 +106,8 @@ private:
 		btAlignedObjectArray<unsigned char> m_flags;
 		btAlignedObjectArray<unsigned char> m_escapeHints;
 		btAlignedObjectArray<int> m_skinMeshHints; ///< per node: its closest skin-mesh triangle last time, or -1
-		btAlignedObjectArray<unsigned char> m_lifted; ///< per node: a link lifted it in the last substep
+		/// per node: how far above the skin offset its edges ask it to rest (metres, >= 0; Config::m_liftEdges)
+		btAlignedObjectArray<btScalar> m_rise;
 		/// The cloth's edges for liftEdgesOffSkin: per edge (a link that is not a bending link) its two nodes and its
 		/// link, listed again when the soft body's link or node array changes size or place.
 		btAlignedObjectArray<int> m_edgeEnds;
@@ -118,8 +119,8 @@ private:
 		int m_edgeLinkCount;
 		int m_edgeNodeCount;
 		/// Per edge, where its midpoint was (world frame, the body still since) when liftEdgesOffSkin last read the
-		/// field there, and the square of how far it may move before that reading no longer proves it clear (the
-		/// reading above the edges' clearance over the field's Lipschitz bound; negative: no reading to reuse).
+		/// field there, and that reading's margin above the edges' clearance (the midpoint may move that over the
+		/// field's Lipschitz bound before the reading no longer proves it clear; <= 0: no reading to reuse).
 		btAlignedObjectArray<btVector3> m_edgeMid;
 		btAlignedObjectArray<btScalar> m_edgeSlack;
 		int m_edgeRevision;      ///< the compound's analytic revision those readings were taken at
@@ -167,14 +168,13 @@ private:
 	unsigned char* m_contactFlags;             ///< the flags collide() fills (0 outside collide())
 	unsigned char* m_escapeHints;              ///< that soft body's escape hints (0 outside collide())
 	int* m_skinMeshHints;                      ///< that soft body's skin-mesh hints (0 outside collide())
-	unsigned char* m_liftedNodes;              ///< that soft body's lifted-node marks (0 outside collide())
+	btScalar* m_nodeRise;                      ///< that soft body's node rises (0 outside collide())
+	btScalar m_skinLevel;                      ///< collideOnSkin: the level of the node it decides
 	const btSoftBody::Node* m_contactNodeBase; ///< node 0 of that soft body
 	ContactRecord* m_contactRecord;            ///< that soft body's record (0 outside collide())
-	btAlignedObjectArray<btVector3> m_edgeLift;    ///< liftEdgesOffSkin: per node, the largest rise its edges ask
-	/// ... and its length, kept as asked (the comparisons use it exactly; 0: none; 0 for every node between calls)
-	btAlignedObjectArray<btScalar> m_edgeLiftSize;
-	btAlignedObjectArray<int> m_edgeActive;        ///< liftEdgesOffSkin: nodes in contact or lifted in the last substep
-	btAlignedObjectArray<int> m_edgeRaised;        ///< liftEdgesOffSkin: nodes some edge asked to rise
+	btAlignedObjectArray<btScalar> m_riseAsk;   ///< liftEdgesOffSkin: per node, the largest rise its edges ask (0: none)
+	btAlignedObjectArray<btScalar> m_riseSlack; ///< ... and its edges' least slack above the clearance (per call)
+	btAlignedObjectArray<int> m_edgeActive;     ///< liftEdgesOffSkin: the nodes in contact this substep
 
 	/// The soft body's record, cleared and sized to its nodes, marked current; m_contactFlags points into it.
 	void beginContactRecord(const btSoftBody* softBody);
@@ -254,32 +254,34 @@ private:
 	// Tight mode (btSkinFieldResponse.cpp): contact decided on the skin field for a node the broad phase kept.
 	/// The path against the field: no contact, placement at the first point at the skin offset, or push-out.
 	/// \return false (zeta is not tracked in tight mode; the field's minimum goes to the stats).
-	bool collideOnSkin(btSoftBody::Node& node, const btVector3& q, const Substep& substep, btScalar& zeta);
+	bool collideOnSkin(btSoftBody::Node& node, const btVector3& qStart, const Substep& substep, btScalar& zeta);
+	/// collideOnSkin's level for a raised node (m_skinLevel: the skin offset plus `rise`) and where its path starts.
+	/// A node that starts a whole offset above its level has left the skin: its rise goes back to 0. One that starts
+	/// between the offset and its level (the level rose since it was placed) starts from qb taken up to the level
+	/// along the gradient (true, qb moved), or is decided at the offset this substep where that fails.
+	bool raiseStart(btScalar& rise, btVector3& qb);
 	/// A node that starts within the skin: Newton on the field from x, else the union push-out (counted).
 	/// \return the field at the node's final position.
 	btScalar pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb, const btVector3& center,
 					   const Substep& substep);
 	/// Config::m_liftEdges, after the node responses of a substep that did not sweep: every cloth edge at a node in
-	/// contact (this substep, or lifted in the last) whose midpoint lies within half the skin offset of the skin asks
-	/// its nodes to rise along the field's gradient there, split by inverse mass; each node takes the largest rise its
-	/// edges ask (capped at 2 offset / L), only between points at the skin offset or more, and is then held as a
-	/// contact is (holdLiftedNode). `startPositions` as for collide().
-	void liftEdgesOffSkin(btSoftBody* softBody, const btVector3* startPositions, const Substep& substep);
-	/// liftEdgesOffSkin's nodes whose edges are looked at (m_edgeActive): in contact this substep, or lifted in the
-	/// last (a lifted node rests above the offset, where its own path no longer meets the surface).
+	/// contact reads the field at its midpoint (or reuses an earlier reading that still proves it clear). An edge whose
+	/// middle lies below the lift clearance asks the level of its nodes in contact (the field value collideOnSkin
+	/// places, holds and pushes them out at) to rise by what the middle lacks, split by inverse mass; a node whose
+	/// edges all clear the skin by more than twice the clearance sinks back toward the offset (updateNodeRises). The
+	/// nodes move in the next substep's node phase, as contacts at their level: no position is changed here, so the
+	/// links and the contacts never pull a node back and forth.
+	void liftEdgesOffSkin(btSoftBody* softBody);
+	/// liftEdgesOffSkin's nodes whose edges are looked at (m_edgeActive): the nodes in contact this substep.
 	void listEdgeNodes(int numNodes);
-	/// liftEdgesOffSkin's last step: each node some edge asked to rise (m_edgeRaised) rises by the largest ask when it
-	/// is at field >= floor and would be there after (else it stays); lifted nodes are marked and flagged as contacts.
-	void raiseEdgeNodes(btSoftBody* softBody, btScalar floor, const btVector3* startPositions, const Substep& substep);
-	/// A node its edges lifted along `up` (unit) is held there as on a surface, with the contact's velocity rule
-	/// (setContactVelocity: its velocity into the skin removed, Coulomb friction, no speed beyond its real motion from
-	/// `start`, the reaction to a dynamic body). Else Bullet's next prediction carries it back in with the velocity its
-	/// links gave it, the lift lifts it again every substep, and the cloth never settles.
-	void holdLiftedNode(btSoftBody::Node& node, const btVector3& up, const btVector3& start, const Substep& substep);
 	/// One edge (link `link`, nodes ia, ib) of liftEdgesOffSkin: its midpoint read on the field unless the last
-	/// reading (lastMid, reach2) still holds; below the clearance, each node's rise (m_edgeLift) raised to what it asks.
-	void liftEdge(btSoftBody* softBody, int link, int ia, int ib, btVector3& lastMid, btScalar& reach2,
-				  btScalar clearance, btScalar maxMove, btScalar lipschitz);
+	/// reading (lastMid, slack: the reading's margin above the clearance) still holds. Below the clearance each
+	/// end in contact asks its share of the rise (m_riseAsk); else each end notes the edge's least slack (m_riseSlack).
+	void liftEdge(btSoftBody* softBody, int link, int ia, int ib, btVector3& lastMid, btScalar& slack,
+				  btScalar clearance, btScalar lipschitz);
+	/// liftEdgesOffSkin's last step, per node in contact: its rise grows by its largest ask (up to maxRise), or
+	/// shrinks by half the slack its edges have beyond the clearance (never below 0).
+	void updateNodeRises(btScalar clearance, btScalar maxRise);
 	/// The field geometry collideOnSkin works with (m_skinGroup).
 	const btSkinFieldGeometry& skinGeometry() const
 	{

@@ -72,16 +72,17 @@ void btSkinFieldGeometry::begin(const btSkinDistanceField* field, btScalar offse
 	m_toBody = bodyToWorld.inverse();
 }
 
-bool btSkinFieldGeometry::leavesSurface(const btVector3& q, const btVector3& x, btScalar fx, btVector3& normal) const
+bool btSkinFieldGeometry::leavesSurface(const btVector3& q, const btVector3& x, btScalar fx, btScalar level,
+										btVector3& normal) const
 {
 	btVector3 g;
 	m_field->distanceAndGradient(q, g);
 	const btScalar slope = g.length();
 	normal = slope > btScalar(1e-3) ? g / slope : btVector3(0, 0, 0);
-	return fx >= m_offset && g.dot(x - q) >= btScalar(0);
+	return fx >= level && g.dot(x - q) >= btScalar(0);
 }
 
-void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPathHit& out) const
+void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btScalar level, btSkinPathHit& out) const
 {
 	out.m_outcome = btSkinPathHit::CLEAR;
 	out.m_t = btScalar(0);
@@ -91,7 +92,7 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPa
 	const btScalar fq = m_field->distance(q);
 	out.m_startValue = fq;
 	out.m_value = fq;
-	if (fq - m_offset < -m_tolerance)
+	if (fq - level < -m_tolerance)
 	{
 		out.m_outcome = btSkinPathHit::START_INSIDE;
 		out.m_point = q;
@@ -106,9 +107,9 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPa
 	// it reads +clamp, m_farStep bounds the step instead, see begin()). So the march steps that far along the path and
 	// cannot pass the first crossing. First the cheap case: the clear balls around both ends cover the path.
 	btScalar g, gx;
-	btScalar f = fq, stepQ = stepFrom(fq, g);
+	btScalar f = fq, stepQ = stepFrom(fq, level, g);
 	const btScalar fx = m_field->distance(x);
-	const btScalar stepX = stepFrom(fx, gx);
+	const btScalar stepX = stepFrom(fx, level, gx);
 	out.m_value = fx;
 	if (stepQ >= btScalar(0) && stepQ + btMax(stepX, btScalar(0)) >= len)
 		return;
@@ -118,7 +119,7 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPa
 		if (g <= m_hitBand || (step >= kGrazingSteps && g <= m_contactBand))
 		{
 			// A node on the surface moving away from it or along it is not a contact.
-			if (s == btScalar(0) && leavesSurface(q, x, fx, out.m_normal))
+			if (s == btScalar(0) && leavesSurface(q, x, fx, level, out.m_normal))
 				return;
 			break;
 		}
@@ -126,7 +127,7 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPa
 		if (s >= len || s + stepX >= len) // past x, or the clear ball around x covers the rest of the path
 			return;
 		f = m_field->distance(q + d * (s / len));
-		stepQ = stepFrom(f, g);
+		stepQ = stepFrom(f, level, g);
 		out.m_limited = step + 1 == kMaxMarchSteps; // out of steps: stop at the last point known outside
 	}
 	out.m_outcome = btSkinPathHit::HIT;
@@ -135,17 +136,17 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btSkinPa
 	out.m_value = f;
 }
 
-bool btSkinFieldGeometry::pushOut(const btVector3& p, btVector3& out, btScalar& value) const
+bool btSkinFieldGeometry::pushOut(const btVector3& p, btScalar level, btVector3& out, btScalar& value) const
 {
 	btVector3 g;
 	const btScalar f = m_field->distanceAndGradient(p, g);
-	return newton(p, f, g, out, value);
+	return newton(p, f, g, level, out, value);
 }
 
-bool btSkinFieldGeometry::newton(const btVector3& p, btScalar f, const btVector3& gradient, btVector3& out,
-								 btScalar& value) const
+bool btSkinFieldGeometry::newton(const btVector3& p, btScalar f, const btVector3& gradient, btScalar level,
+								 btVector3& out, btScalar& value) const
 {
-	const btScalar target = m_offset + m_margin + btScalar(0.5) * m_hitBand;
+	const btScalar target = level + m_margin + btScalar(0.5) * m_hitBand;
 	btVector3 point = p, g = gradient;
 	for (int step = 0;; ++step)
 	{
@@ -163,10 +164,12 @@ bool btSkinFieldGeometry::newton(const btVector3& p, btScalar f, const btVector3
 	}
 }
 
-btVector3 btSkinFieldGeometry::slide(const btVector3& from, const btVector3& displacement, btScalar& value) const
+btVector3 btSkinFieldGeometry::slide(const btVector3& from, const btVector3& displacement, btScalar level,
+									 btScalar& value) const
 {
-	// A piece no longer than offset / L from a point at field >= offset ends at field >= 0, outside the skin (the
-	// zero level encloses it); the push-out there follows the gradient, away from the skin, so no piece crosses the body.
+	// A piece no longer than offset / L from a point at field >= level >= offset ends at field >= 0, outside the skin
+	// (the zero level encloses it); the push-out there follows the gradient, away from the skin, so no piece crosses
+	// the body.
 	const btScalar len = displacement.length();
 	if (!(len > btScalar(0)))
 		return from;
@@ -179,7 +182,7 @@ btVector3 btSkinFieldGeometry::slide(const btVector3& from, const btVector3& dis
 	{
 		btVector3 c = p + step, g;
 		btScalar f = m_field->distanceAndGradient(c, g);
-		if (f - m_offset - m_margin < btScalar(0) && !newton(c, f, g, c, f))
+		if (f - level - m_margin < btScalar(0) && !newton(c, f, g, level, c, f))
 			break;
 		p = c;
 		value = f;
@@ -224,16 +227,49 @@ btVector3 btEllipsoidClothColliderCore::skinSurfaceVelocity(const btVector3& wor
 	return (worldPoint - m_groupPrevious[m_skinGroup] * bindPoint) / dt;
 }
 
-bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const btVector3& q, const Substep& substep,
-												 btScalar& zeta)
+bool btEllipsoidClothColliderCore::raiseStart(btScalar& rise, btVector3& qb)
+{
+	const btSkinFieldGeometry& geometry = skinGeometry();
+	const btScalar offset = geometry.offset();
+	const btScalar fq = geometry.field()->distance(qb);
+	if (fq > btScalar(2) * offset + rise)
+		rise = btScalar(0); // a whole offset above its level: it has left the skin, its edges no longer hold it up
+	m_skinLevel = offset + rise;
+	if (!(fq < m_skinLevel - geometry.tolerance() && fq >= offset - geometry.tolerance()))
+		return false; // at or above its level, or within the skin offset (the push-out's case)
+	// The level rose since the node was placed: it starts from its start taken up to the level.
+	btVector3 raised;
+	btScalar value;
+	if (geometry.pushOut(qb, m_skinLevel, raised, value))
+	{
+		qb = raised;
+		return true;
+	}
+	m_skinLevel = offset; // no way up there (the gradient vanishes): decided at the skin offset this substep
+	return false;
+}
+
+bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const btVector3& qStart,
+												 const Substep& substep, btScalar& zeta)
 {
 	zeta = SIMD_INFINITY;
 	const btSkinFieldGeometry& geometry = skinGeometry();
-	const btVector3 qb = geometry.toBody() * q, xb = geometry.toBody() * node.m_x;
+	btVector3 qb = geometry.toBody() * qStart;
+	const btVector3 xb = geometry.toBody() * node.m_x;
+	// The node's level: the skin offset, raised where its edges sag into the skin (liftEdgesOffSkin; not on a bone's
+	// field, whose substeps never lift).
+	btVector3 q = qStart;
+	if (m_nodeRise && m_skinGroup < 0 && m_nodeRise[&node - m_contactNodeBase] > btScalar(0))
+	{
+		if (raiseStart(m_nodeRise[&node - m_contactNodeBase], qb))
+			q = geometry.toWorld() * qb;
+	}
+	else
+		m_skinLevel = geometry.offset();
 	btSkinPathHit hit;
-	geometry.march(qb, xb, hit);
+	geometry.march(qb, xb, m_skinLevel, hit);
 	if (hit.m_outcome == btSkinPathHit::CLEAR)
-		return false; // the march verified field >= offset at x (its cheap test and its last ball both contain x)
+		return false; // the march verified field >= level at x (its cheap test and its last ball both contain x)
 	m_lastStats.m_skinMarchLimits += hit.m_limited ? 1 : 0;
 	const btVector3& center = m_current[substep.m_candidates[0]].m_center; // for PAPER_EQ10
 	btScalar value = hit.m_value; // the field at the node's final position, tracked through the response
@@ -247,10 +283,10 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 		if (n.length2() == btScalar(0))
 			n = (qb - xb).normalized(); // a flat spot of the field at the offset level: back along the path
 		const btVector3 normal = geometry.toWorld().getBasis() * n;
-		if (respondOnSkin(node, normal, node.m_x - normal * geometry.offset(), q, center, substep, btScalar(1) - hit.m_t,
+		if (respondOnSkin(node, normal, node.m_x - normal * m_skinLevel, q, center, substep, btScalar(1) - hit.m_t,
 						  value))
 		{
-			node.m_x = q; // held by static friction: stays at its start, outside (the march found field(q) >= offset)
+			node.m_x = q; // held by static friction: stays at its start, outside (the march found field(q) >= level)
 			value = hit.m_startValue;
 		}
 	}
@@ -264,15 +300,15 @@ btScalar btEllipsoidClothColliderCore::pushOutOfSkin(btSoftBody::Node& node, con
 	const btSkinFieldGeometry& geometry = skinGeometry();
 	// The body moved into the node (or it started within the skin). If the solve already brought it out, keep it.
 	btScalar value = geometry.field()->distance(xb);
-	if (value >= geometry.offset())
+	if (value >= m_skinLevel)
 		return value;
 	++m_lastStats.m_nodesPushedOut;
 	btVector3 out;
-	if (geometry.pushOut(xb, out, value))
+	if (geometry.pushOut(xb, m_skinLevel, out, value))
 	{
 		node.m_x = geometry.toWorld() * out;
 		const btVector3 normal = geometry.toWorld().getBasis() * geometry.normal(out);
-		respondOnSkin(node, normal, node.m_x - normal * geometry.offset(), q, center, substep, btScalar(0), value);
+		respondOnSkin(node, normal, node.m_x - normal * m_skinLevel, q, center, substep, btScalar(0), value);
 		return value;
 	}
 	// The gradient vanishes (deeper than the clamp, the field's extremum) or Newton did not converge: the union
@@ -306,7 +342,7 @@ bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const b
 		// The rest of the substep along the surface, with the new velocity.
 		const btSkinFieldGeometry& geometry = skinGeometry();
 		const btVector3 displacement = geometry.toBody().getBasis() * (vr * (remaining * substep.m_dt));
-		node.m_x = geometry.toWorld() * geometry.slide(geometry.toBody() * node.m_x, displacement, value);
+		node.m_x = geometry.toWorld() * geometry.slide(geometry.toBody() * node.m_x, displacement, m_skinLevel, value);
 	}
 	setContactVelocity(node, vr, normal, start, bodyVelocity, before, surface, substep.m_dt);
 	return stopped;
@@ -367,22 +403,18 @@ inline std::uint64_t readWord(const unsigned char* p)
 }
 } // namespace
 
-void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody, const btVector3* startPositions,
-													 const Substep& substep)
+void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
 {
 	const btSkinFieldGeometry& geometry = m_skinGeometry;
 	const btSkinDistanceField& field = *geometry.field();
 	// Edges clear the skin by a fraction of the skin offset (Config::m_liftClearance, below 1): an edge at the offset
-	// on a flat skin is untouched, and the lift raises its nodes only by what the edge's sag over a curved skin takes
+	// on a flat skin is untouched, and its nodes rest higher only by what the edge's sag over a curved skin takes
 	// below that.
 	const btScalar clearance = m_config.m_liftClearance * geometry.offset();
 	const int numNodes = softBody->m_nodes.size();
 	if (!(clearance > btScalar(0)) || numNodes == 0)
 		return;
-	// A node moved at most 2 offset / L from a point at field >= offset to another such point passes no point below 0
-	// (each point of the move is within offset / L of an end): the lifted node's path stays outside the skin.
-	const btScalar maxMove = btScalar(2) * geometry.offset() / field.getLipschitz();
-	const btScalar floor = geometry.offset() - geometry.tolerance();
+	const btScalar maxRise = geometry.maxRise();
 	ContactRecord* record = m_contactRecord; // (collide() began it)
 	const bool relisted = record->listEdges(*softBody);
 	const int numEdges = record->m_edgeLinks.size();
@@ -391,7 +423,7 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody, const 
 	{
 		// Other edges, another field, another clearance, or the body moved: no reading is reusable.
 		for (int e = 0; e < numEdges; ++e)
-			record->m_edgeSlack[e] = btScalar(-1);
+			record->m_edgeSlack[e] = btScalar(0);
 		record->m_edgeRevision = m_compound->getAnalyticRevision();
 		record->m_edgeClearance = clearance;
 	}
@@ -401,10 +433,9 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody, const 
 	btVector3* lastMid = numEdges > 0 ? &record->m_edgeMid[0] : 0;
 	btScalar* slack = numEdges > 0 ? &record->m_edgeSlack[0] : 0;
 	const btScalar lipschitz = field.getLipschitz();
-	m_edgeLift.resize(numNodes);
-	m_edgeLiftSize.resize(numNodes, btScalar(0));
+	m_riseAsk.resize(numNodes, btScalar(0));
+	m_riseSlack.resize(numNodes, SIMD_INFINITY);
 	listEdgeNodes(numNodes);
-	m_edgeRaised.resize(0);
 	for (int k = 0; k < m_edgeActive.size(); ++k)
 	{
 		const int i = m_edgeActive[k];
@@ -412,14 +443,12 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody, const 
 		{
 			const int e = nodeEdges[s];
 			const int j = ends[2 * e] == i ? ends[2 * e + 1] : ends[2 * e];
-			if (j < i && (m_contactFlags[j] | m_liftedNodes[j]))
+			if (j < i && m_contactFlags[j])
 				continue; // looked at from j
-			liftEdge(softBody, record->m_edgeLinks[e], i, j, lastMid[e], slack[e], clearance, maxMove, lipschitz);
+			liftEdge(softBody, record->m_edgeLinks[e], i, j, lastMid[e], slack[e], clearance, lipschitz);
 		}
 	}
-	for (int k = 0; k < m_edgeActive.size(); ++k)
-		m_liftedNodes[m_edgeActive[k]] = 0;
-	raiseEdgeNodes(softBody, floor, startPositions, substep);
+	updateNodeRises(clearance, maxRise);
 }
 
 void btEllipsoidClothColliderCore::listEdgeNodes(int numNodes)
@@ -427,101 +456,96 @@ void btEllipsoidClothColliderCore::listEdgeNodes(int numNodes)
 	m_edgeActive.resize(0);
 	for (int i = 0; i < numNodes;)
 	{
-		if (i + 8 <= numNodes && !(readWord(m_contactFlags + i) | readWord(m_liftedNodes + i)))
+		if (i + 8 <= numNodes && !readWord(m_contactFlags + i))
 		{
 			i += 8; // most of a cloth touches nothing: eight nodes at a time
 			continue;
 		}
-		if (m_contactFlags[i] | m_liftedNodes[i])
+		if (m_contactFlags[i])
 			m_edgeActive.push_back(i);
 		++i;
 	}
 }
 
-void btEllipsoidClothColliderCore::raiseEdgeNodes(btSoftBody* softBody, btScalar floor, const btVector3* startPositions,
-												   const Substep& substep)
+void btEllipsoidClothColliderCore::updateNodeRises(btScalar clearance, btScalar maxRise)
 {
-	const btSkinFieldGeometry& geometry = m_skinGeometry;
-	const btSkinDistanceField& field = *geometry.field();
-	btSoftBody::Node* base = &softBody->m_nodes[0];
-	for (int k = 0; k < m_edgeRaised.size(); ++k)
+	// A level rises by at most a quarter of the skin offset per substep: the node phase pushes the node up by what
+	// its level rose, and a push of several millimetres in one substep stretched its links enough to throw the
+	// cloth about (a coarse cloth on a sphere bounced off it).
+	const btScalar maxStep = btScalar(0.25) * m_skinGeometry.offset();
+	for (int k = 0; k < m_edgeActive.size(); ++k)
 	{
-		const int i = m_edgeRaised[k];
-		const btVector3 x = base[i].m_x + m_edgeLift[i];
-		m_edgeLiftSize[i] = btScalar(0);
-		if (field.distance(geometry.toBody() * x) < floor || field.distance(geometry.toBody() * base[i].m_x) < floor)
-			continue;
-		base[i].m_x = x;
-		// Where the node started the substep, carried with the body as collide() carries it.
-		const btVector3 start = m_moving ? m_delta * (startPositions ? startPositions[i] : base[i].m_q)
-										 : (startPositions ? startPositions[i] : base[i].m_q);
-		holdLiftedNode(base[i], m_edgeLift[i].normalized(), start, substep);
-		m_liftedNodes[i] = 1;
-		m_contactFlags[i] = 1;
-		++m_lastStats.m_nodesLifted;
+		const int i = m_edgeActive[k];
+		btScalar& rise = m_nodeRise[i];
+		if (m_riseAsk[i] > btScalar(0))
+		{
+			rise = btMin(rise + btMin(m_riseAsk[i], maxStep), maxRise);
+			++m_lastStats.m_nodesLifted;
+		}
+		else if (rise > btScalar(0) && m_riseSlack[i] > clearance)
+		{
+			// Every edge's middle stands more than twice the clearance off the skin: half of the excess goes (the
+			// next substep reads the edges again, so the level settles where its most sagging edge just clears).
+			rise = btMax(btScalar(0), rise - btScalar(0.5) * (m_riseSlack[i] - clearance));
+		}
+		m_riseAsk[i] = btScalar(0);
+		m_riseSlack[i] = SIMD_INFINITY;
 	}
 }
 
-void btEllipsoidClothColliderCore::holdLiftedNode(btSoftBody::Node& node, const btVector3& up, const btVector3& start,
-												   const Substep& substep)
-{
-	const btVector3 bodyVelocity = bodyVelocityAt(node.m_x, -1, substep.m_dt);
-	const btVector3 before = node.m_v; // (a copy: setContactVelocity writes m_v before the reaction reads `before`)
-	btNodeContacts contacts;
-	contacts.add(up);
-	const btVector3 vr = btRelativeVelocityAfterContact(REMOVE_NORMAL_COULOMB, substep.m_friction,
-														node.m_v - bodyVelocity, contacts, node.m_x, start, node.m_x);
-	setContactVelocity(node, vr, up, start, bodyVelocity, before, node.m_x, substep.m_dt);
-}
-
 void btEllipsoidClothColliderCore::liftEdge(btSoftBody* softBody, int link, int ia, int ib, btVector3& lastMid,
-											btScalar& reach2, btScalar clearance, btScalar maxMove, btScalar lipschitz)
+											btScalar& slack, btScalar clearance, btScalar lipschitz)
 {
 	const btSkinFieldGeometry& geometry = m_skinGeometry;
 	const btSkinDistanceField& field = *geometry.field();
 	const btSoftBody::Node* base = &softBody->m_nodes[0];
-	const btScalar wa = base[ia].m_im, wb = base[ib].m_im;
+	// The ends whose level can rise: in contact, movable.
+	const btScalar wa = m_contactFlags[ia] ? base[ia].m_im : btScalar(0);
+	const btScalar wb = m_contactFlags[ib] ? base[ib].m_im : btScalar(0);
 	if (!(wa + wb > btScalar(0)))
 		return;
 	const btVector3& xa = base[ia].m_x;
 	const btVector3& xb = base[ib].m_x;
 	const btVector3 mid = (xa + xb) * btScalar(0.5);
 	// The field is L-Lipschitz (up to its seam, which the slack keeps): a midpoint that read `slack` above the
-	// clearance and has since moved less than slack / L (the body still) still reads above it.
-	if ((mid - lastMid).length2() < reach2)
+	// clearance and has since moved less than slack / L (the body still) still reads above it, by at least what is left.
+	const btScalar moved2 = slack > btScalar(0) ? (mid - lastMid).length2() * lipschitz * lipschitz : SIMD_INFINITY;
+	if (moved2 < slack * slack)
+	{
+		if (m_nodeRise[ia] > btScalar(0) || m_nodeRise[ib] > btScalar(0))
+		{
+			const btScalar left = slack - btSqrt(moved2);
+			m_riseSlack[ia] = btMin(m_riseSlack[ia], left);
+			m_riseSlack[ib] = btMin(m_riseSlack[ib], left);
+		}
 		return;
-	// An edge stretched past 1.5x its rest length spans something (a limb between nodes on both sides): a lift at
-	// its middle cannot free it without pushing a node into the body.
+	}
+	// An edge stretched past 1.5x its rest length spans something (a limb between nodes on both sides): a rise of
+	// its nodes cannot free it without carrying them far from the skin.
 	const btScalar rest = softBody->m_links[link].m_rl;
 	if ((xb - xa).length2() > btScalar(2.25) * rest * rest)
 		return;
 	const btVector3 midBody = geometry.toBody() * mid;
 	const btScalar fMid = field.distance(midBody);
-	const btScalar slack = fMid - clearance - geometry.margin();
 	lastMid = mid;
-	reach2 = slack > btScalar(0) ? slack * slack / (lipschitz * lipschitz) : btScalar(-1);
+	slack = fMid - clearance - geometry.margin();
 	if (fMid >= clearance)
+	{
+		m_riseSlack[ia] = btMin(m_riseSlack[ia], slack);
+		m_riseSlack[ib] = btMin(m_riseSlack[ib], slack);
 		return;
+	}
 	btVector3 g;
 	const btScalar f = field.distanceAndGradient(midBody, g);
 	const btScalar slope = g.length();
 	if (!(slope > btScalar(0.1)))
 		return;
-	const btScalar lift = (clearance - f) / slope;
-	const btVector3 n = geometry.toWorld().getBasis() * (g / slope);
-	const int nodes[2] = {ia, ib};
-	const btScalar shares[2] = {btScalar(2) * wa / (wa + wb), btScalar(2) * wb / (wa + wb)};
-	for (int k = 0; k < 2; ++k)
-	{
-		const btScalar move = btMin(lift * shares[k], maxMove);
-		if (move > m_edgeLiftSize[nodes[k]])
-		{
-			if (m_edgeLiftSize[nodes[k]] == btScalar(0))
-				m_edgeRaised.push_back(nodes[k]);
-			m_edgeLiftSize[nodes[k]] = move;
-			m_edgeLift[nodes[k]] = n * move;
-		}
-	}
+	// Raising both levels by d raises the middle by about d (the skin under a short edge is nearly parallel to it);
+	// split by inverse mass, each end in contact asks its share of what the middle lacks.
+	const btScalar lack = (clearance - f) / slope;
+	const btScalar askA = lack * btScalar(2) * wa / (wa + wb), askB = lack * btScalar(2) * wb / (wa + wb);
+	m_riseAsk[ia] = btMax(m_riseAsk[ia], askA);
+	m_riseAsk[ib] = btMax(m_riseAsk[ib], askB);
 }
 
 // ---------------------------------------------------------------------------------------------------------------

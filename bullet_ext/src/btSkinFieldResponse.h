@@ -49,17 +49,23 @@ public:
 	btScalar tolerance() const { return m_tolerance; }
 	const btTransform& toBody() const { return m_toBody; }
 	const btTransform& toWorld() const { return m_toWorld; }
+	/// The highest a node's level may stand above offset(): 3 offsets (the sag of a 5 cm edge over skin of radius
+	/// 5 cm is 6 mm; an edge that asks more spans something narrower than itself, an ear or a finger, which no rise of
+	/// its nodes clears), and less where the field's far step would shrink below an offset (see stepFrom).
+	btScalar maxRise() const { return btMax(btScalar(0), btMin(btScalar(3) * m_offset, m_farStep - m_offset)); }
 
-	/// The path q -> x (body frame) against the level set field = offset, by sphere tracing (see the .cpp).
-	void march(const btVector3& q, const btVector3& x, btSkinPathHit& out) const;
-	/// Newton steps on field = offset along the gradient from p (body frame). \return true with the point at
-	/// field in [offset + seam, offset + seam + hit band] and its field value; false where the gradient vanishes or
+	/// Every query below works on one node's level: the field value it rests at, offset() plus the rise its edges
+	/// asked (Config::m_liftEdges; btEllipsoidClothColliderCore::liftEdgesOffSkin), never below offset().
+	/// The path q -> x (body frame) against the level set field = level, by sphere tracing (see the .cpp).
+	void march(const btVector3& q, const btVector3& x, btScalar level, btSkinPathHit& out) const;
+	/// Newton steps on field = level along the gradient from p (body frame). \return true with the point at
+	/// field in [level + seam, level + seam + hit band] and its field value; false where the gradient vanishes or
 	/// it does not converge.
-	bool pushOut(const btVector3& p, btVector3& out, btScalar& value) const;
-	/// Moves from `from` (field >= offset) by `displacement` along the surface: pieces short enough that none can
-	/// cross the field's zero level, each brought back to the offset level; stops where that fails. Body frame.
+	bool pushOut(const btVector3& p, btScalar level, btVector3& out, btScalar& value) const;
+	/// Moves from `from` (field >= level) by `displacement` along the surface: pieces short enough that none can
+	/// cross the field's zero level, each brought back to the level; stops where that fails. Body frame.
 	/// `value` (the field at `from` on entry) becomes the field at the returned point.
-	btVector3 slide(const btVector3& from, const btVector3& displacement, btScalar& value) const;
+	btVector3 slide(const btVector3& from, const btVector3& displacement, btScalar level, btScalar& value) const;
 	/// The outward unit normal (body frame) at p, or zero where the gradient vanishes.
 	btVector3 normal(const btVector3& p) const { return m_field->gradient(p); }
 
@@ -76,22 +82,24 @@ private:
 	btTransform m_toWorld;
 
 	/// pushOut from a point where the field f and its gradient are known.
-	bool newton(const btVector3& p, btScalar f, const btVector3& gradient, btVector3& out, btScalar& value) const;
-	/// How far the march may step from a point where the field is f without passing the level field = offset (see
-	/// the .cpp); `clear` gets the clearance the hit test compares with the hit band.
-	btScalar stepFrom(btScalar f, btScalar& clear) const
+	bool newton(const btVector3& p, btScalar f, const btVector3& gradient, btScalar level, btVector3& out,
+				btScalar& value) const;
+	/// How far the march may step from a point where the field is f without passing the level field = level (see
+	/// the .cpp); `clear` gets the clearance the hit test compares with the hit band. Where the field reads +clamp the
+	/// far step shrinks by what the level stands above the offset (it bounds the distance to the offset level).
+	btScalar stepFrom(btScalar f, btScalar level, btScalar& clear) const
 	{
 		if (f >= m_field->getClamp())
 		{
-			clear = m_farStep;
-			return m_farStep;
+			clear = btMax(btScalar(0), m_farStep - (level - m_offset));
+			return clear;
 		}
-		clear = f - m_offset - m_margin;
+		clear = f - level - m_margin;
 		return clear * m_invLipschitz;
 	}
-	/// The march ended at s = 0 with field(q) at the offset: leaving (or moving along) the surface is not a contact.
+	/// The march ended at s = 0 with field(q) at the level: leaving (or moving along) the surface is not a contact.
 	/// fx is the field at x; `normal` gets the unit normal at q (zero where the gradient vanishes).
-	bool leavesSurface(const btVector3& q, const btVector3& x, btScalar fx, btVector3& normal) const;
+	bool leavesSurface(const btVector3& q, const btVector3& x, btScalar fx, btScalar level, btVector3& normal) const;
 };
 
 /// Why `config` cannot run in TIGHT_SKIN mode on the compound's skin field (a skin offset the field cannot
