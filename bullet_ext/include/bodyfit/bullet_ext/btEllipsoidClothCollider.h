@@ -134,13 +134,13 @@ public:
 		/// TIGHT_SKIN (default; takes effect when the compound has a skin field) or ELLIPSOIDS.
 		SurfaceMode m_surface;
 		/// TIGHT_SKIN on a body that moves rigidly or not at all: after the node responses of a substep, every cloth
-		/// edge (a link that is not a bending link) at a node in contact whose midpoint lies within
-		/// m_liftClearance x the skin offset of the skin is lifted off it along the field's gradient (its nodes moved, split by inverse mass, at
-		/// most 2 offset / L, and only to points at the skin offset or more), so cloth faces do not cut into the skin
-		/// between nodes. Nodes then rest where their edges clear the skin: on skin curved under an edge, higher than
-		/// the offset (by the edge's sag, about L^2 / 8R for an edge of length L on skin of radius R, less the offset
-		/// minus the clearance). Default true; false keeps nodes at the offset, and edges longer than about
-		/// sqrt(8 R offset) then sag into the skin between them.
+		/// edge (a link that is not a bending link) at a node in contact whose midpoint lies within m_liftClearance x
+		/// the skin offset of the skin raises the level its nodes rest at (split by inverse mass, at most 3 skin
+		/// offsets above the offset), and the next substep's contact response keeps them there, so cloth faces do not
+		/// cut into the skin between nodes. Nodes then rest where their edges clear the skin: on skin curved under an
+		/// edge, higher than the offset (by the edge's sag, about L^2 / 8R for an edge of length L on skin of radius
+		/// R, less the offset minus the clearance). Default true; false keeps nodes at the offset, and edges longer
+		/// than about sqrt(8 R offset) then sag into the skin between them.
 		bool m_liftEdges;
 		/// With m_liftEdges: how far lifted edges clear the skin, as a fraction of m_skinOffset, in (0, 1]. Lower
 		/// lets cloth rest closer (smaller contact gap) and lets more edges graze the skin where the field is not
