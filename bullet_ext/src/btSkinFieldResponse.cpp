@@ -257,9 +257,9 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 	btVector3 qb = geometry.toBody() * qStart;
 	const btVector3 xb = geometry.toBody() * node.m_x;
 	// The node's level: the skin offset, raised where its edges sag into the skin (liftEdgesOffSkin; not on a bone's
-	// field, whose substeps never lift).
+	// field, whose substeps never lift, nor once the lift is switched off).
 	btVector3 q = qStart;
-	if (m_nodeRise && m_skinGroup < 0 && m_nodeRise[&node - m_contactNodeBase] > btScalar(0))
+	if (m_nodeRise && m_config.m_liftEdges && m_skinGroup < 0 && m_nodeRise[&node - m_contactNodeBase] > btScalar(0))
 	{
 		if (raiseStart(m_nodeRise[&node - m_contactNodeBase], qb))
 			q = geometry.toWorld() * qb;
@@ -288,6 +288,15 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 		{
 			node.m_x = q; // held by static friction: stays at its start, outside (the march found field(q) >= level)
 			value = hit.m_startValue;
+			// A start above the contact band (its level fell since, or links pulling hard into the skin stopped it
+			// far up its path) comes down along the normal to where it touches: held there, not hovering.
+			btVector3 down;
+			btScalar downValue;
+			if (value > m_skinLevel + geometry.contactBand() && geometry.pushOut(qb, m_skinLevel, down, downValue))
+			{
+				node.m_x = geometry.toWorld() * down;
+				value = downValue;
+			}
 		}
 	}
 	m_lastStats.m_minSkinField = btMin(m_lastStats.m_minSkinField, value);

@@ -47,6 +47,7 @@ public:
 	btScalar offset() const { return m_offset; }
 	btScalar margin() const { return m_margin; }
 	btScalar tolerance() const { return m_tolerance; }
+	btScalar contactBand() const { return m_contactBand; }
 	const btTransform& toBody() const { return m_toBody; }
 	const btTransform& toWorld() const { return m_toWorld; }
 	/// The highest a node's level may stand above offset(): 3 offsets (the sag of a 5 cm edge over skin of radius
