@@ -9,6 +9,7 @@
 #include <BulletSoftBody/btSoftBody.h>
 
 #include "bodyfit/bullet_ext/btFloatRange.h"
+#include "bodyfit/fitting/skin_field.h"
 
 #include <cmath>
 
@@ -44,6 +45,14 @@ FarRun runAt(const bodyfit::drape::Scene& scene0, const bodyfit::drape::BodyData
 	body.mesh.V.rowwise() += offset.transpose();
 	for (bodyfit::Ellipsoid& e : body.ellipsoids)
 		e.center += offset;
+	if (body.skinField)
+	{
+		// The tight surface's field moves with the body (baked at the origin, its grid shifted: the bake's own float
+		// behaviour is not what this measures; the collider reads it in float coordinates there).
+		std::shared_ptr<bodyfit::SkinField> moved = std::make_shared<bodyfit::SkinField>(*body.skinField);
+		moved->origin += offset;
+		body.skinField = moved;
+	}
 	FarRun r;
 	{
 		// Measured past the refusal on purpose; the check's verdict is reported beside the numbers.
