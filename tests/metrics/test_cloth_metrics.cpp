@@ -353,6 +353,57 @@ struct LinkedCloth
 
 } // namespace
 
+TEST_CASE("metrics: a cloth face the cube's corner pokes through, though its edges clear it", "[metrics][crossings]")
+{
+	// The cube's corner (0.1, 0.1, 0.1) pokes 5.8 mm through the plane x + y + z = 0.29 (the corner is at 0.3 /
+	// sqrt(3) along the diagonal, the plane 0.29 / sqrt(3)): the plane cuts the cube in a small triangle (1.4 cm sides)
+	// around its centroid c = (0.29 / 3)(1, 1, 1). A face of that plane around c with corners 5 cm from c has its
+	// corners outside (each has a coordinate above 0.1) and its edges 2.5 cm from c, clear of the cut; its centroid, c
+	// itself, is inside, 0.1 - 0.29 / 3 = 3.33 mm from the nearest face of the cube.
+	const Eigen::Vector3d c = Eigen::Vector3d::Constant(0.29 / 3.0);
+	const Eigen::Vector3d u = Eigen::Vector3d(2, -1, -1).normalized(), v = Eigen::Vector3d(0, 1, -1).normalized();
+	std::vector<Eigen::Vector3d> corners;
+	for (int k = 0; k < 3; ++k)
+	{
+		const double angle = 2.0 * M_PI * k / 3.0;
+		corners.push_back(c + 0.05 * (std::cos(angle) * u + std::sin(angle) * v));
+	}
+	// A second face far off (skipped by the distance test) and a third with a corner inside (a penetrating node).
+	const std::vector<Eigen::Vector3d> far = {{0.5, 0.5, 0.5}, {0.52, 0.5, 0.5}, {0.5, 0.52, 0.5}};
+	const std::vector<Eigen::Vector3d> oneInside = {{0.0, 0.0, 0.0}, {0.2, 0.0, 0.0}, {0.0, 0.2, 0.0}};
+	for (const btTransform& pose : {btTransform::getIdentity(), bodyPose()})
+	{
+		BodyReference body(handMadeCube());
+		body.setPose(pose);
+		std::vector<btVector3> nodes;
+		const std::vector<const std::vector<Eigen::Vector3d>*> faces = {&corners, &far, &oneInside};
+		for (const std::vector<Eigen::Vector3d>* face : faces)
+			for (const Eigen::Vector3d& p : *face)
+				nodes.push_back(pose * btVector3(btScalar(p.x()), btScalar(p.y()), btScalar(p.z())));
+		const std::vector<btScalar> masses(nodes.size(), btScalar(1));
+		btSoftBodyWorldInfo info;
+		btSoftBody cloth(&info, int(nodes.size()), nodes.data(), masses.data());
+		for (int f = 0; f < 3; ++f)
+			cloth.appendFace(3 * f, 3 * f + 1, 3 * f + 2);
+		for (int n = 0; n < 3; ++n)
+			cloth.appendLink(n, (n + 1) % 3); // the first face's edges
+		for (int n = 0; n < 3; ++n)
+			REQUIRE_FALSE(body.isInside(corners[size_t(n)]));
+		const EdgeCrossings e = measureEdgeCrossings(cloth, body);
+		CHECK(e.faces == 3);
+		CHECK(e.facesCrossing == 1);
+		// The centroid is one of the 10 samples and the deepest of them: 3.33 mm (float node coordinates).
+		CHECK(e.maxFaceDepth == Approx(0.1 - 0.29 / 3.0).margin(kFloatTolerance));
+		// None of the first face's edges crosses: the cut is in its middle.
+		CHECK(e.links == 3);
+		CHECK(e.crossing == 0);
+		const nlohmann::json j = toJson(measureCloth(cloth, body, ContactOptions{ContactRule::None, 0.0}));
+		CHECK(j["faces"].get<int>() == 3);
+		CHECK(j["faces_crossing_body"].get<int>() == 1);
+		CHECK(j["max_face_crossing_depth_m"].get<double>() == Approx(0.1 - 0.29 / 3.0).margin(kFloatTolerance));
+	}
+}
+
 TEST_CASE("metrics: cloth edges crossing a hand-made cube, and the deepest crossing", "[metrics][crossings]")
 {
 	using Segment = std::pair<Eigen::Vector3d, Eigen::Vector3d>;

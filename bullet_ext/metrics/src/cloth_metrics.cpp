@@ -378,6 +378,21 @@ double crossingDepth(const BodyReference& body, const Eigen::Vector3d& a, const 
 	return depth;
 }
 
+/// Deepest of the 10 interior samples (i a + j b + k c) / 6, i, j, k >= 1, that lie inside the body; -1 when none does.
+double faceCrossingDepth(const BodyReference& body, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+						 const Eigen::Vector3d& c)
+{
+	double depth = -1.0;
+	for (int i = 1; i <= 4; ++i)
+		for (int j = 1; i + j <= 5; ++j)
+		{
+			const Eigen::Vector3d p = (double(i) * a + double(j) * b + double(6 - i - j) * c) / 6.0;
+			if (body.isInside(p))
+				depth = std::max(depth, body.skinDistance(p));
+		}
+	return depth;
+}
+
 } // namespace
 
 EdgeCrossings measureEdgeCrossings(const btSoftBody& cloth, const BodyReference& body)
@@ -412,6 +427,24 @@ EdgeCrossings measureEdgeCrossings(const btSoftBody& cloth, const BodyReference&
 		++out.crossing;
 		out.maxDepth = std::max(out.maxDepth, crossingDepth(body, a, b, hits));
 	}
+	for (int f = 0; f < cloth.m_faces.size(); ++f)
+	{
+		const btSoftBody::Face& face = cloth.m_faces[f];
+		const size_t i = size_t(face.m_n[0] - base), j = size_t(face.m_n[1] - base), k = size_t(face.m_n[2] - base);
+		if (!local[i].allFinite() || !local[j].allFinite() || !local[k].allFinite())
+			continue;
+		++out.faces;
+		const double longest = std::max({(local[j] - local[i]).norm(), (local[k] - local[j]).norm(),
+										 (local[i] - local[k]).norm()});
+		if (distance[i] < 0.0 || distance[j] < 0.0 || distance[k] < 0.0 ||
+			std::min({distance[i], distance[j], distance[k]}) > longest)
+			continue;
+		const double depth = faceCrossingDepth(body, local[i], local[j], local[k]);
+		if (depth < 0.0)
+			continue;
+		++out.facesCrossing;
+		out.maxFaceDepth = std::max(out.maxFaceDepth, depth);
+	}
 	return out;
 }
 
@@ -443,6 +476,9 @@ nlohmann::json toJson(const ClothMetrics& m)
 	j["links"] = crossing(m.crossings.links);
 	j["links_crossing_body"] = crossing(m.crossings.crossing);
 	j["max_link_crossing_depth_m"] = crossing(m.crossings.maxDepth);
+	j["faces"] = crossing(m.crossings.faces);
+	j["faces_crossing_body"] = crossing(m.crossings.facesCrossing);
+	j["max_face_crossing_depth_m"] = crossing(m.crossings.maxFaceDepth);
 	return j;
 }
 

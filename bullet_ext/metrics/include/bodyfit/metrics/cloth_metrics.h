@@ -141,13 +141,19 @@ struct ContactMetrics
 	GapSummary gap;
 };
 
-/// Cloth edges through the body: links whose two end nodes are outside the mesh but whose segment meets it.
+/// Cloth edges and faces through the body: links whose two end nodes are outside the mesh but whose segment meets it,
+/// and faces whose three corners are outside but whose interior reaches inside (a triangle can cut the skin between
+/// its nodes while its edges clear it: the skin poking into its middle, or sagging over the skin deeper than its
+/// edges).
 struct EdgeCrossings
 {
 	bool measured = false;  ///< false: not measured (toJson writes null), e.g. a ClothMetrics built without them
 	int links = 0;          ///< cloth edges (links that are not bending links) with two finite end nodes
 	int crossing = 0;       ///< of those, both ends outside the body mesh and the segment meets a triangle
 	double maxDepth = 0.0;  ///< deepest point inside the body along a crossing link (metres; 0 when none crosses)
+	int faces = 0;          ///< cloth faces with three finite corners
+	int facesCrossing = 0;  ///< of those, three corners outside the body mesh and an interior sample inside it
+	double maxFaceDepth = 0.0; ///< deepest such interior sample (metres; 0 when none crosses)
 };
 
 /// Everything measured on one soft body at one instant.
@@ -182,6 +188,10 @@ ContactMetrics measureContacts(const btSoftBody& cloth, const BodyReference& bod
 /// to more than its length (no point of the segment can then reach the surface); the others are tested against the
 /// triangles in the grid cells under the segment's box. The depth of a crossing is the largest distance to the skin
 /// over 9 points of each inside stretch between consecutive hits (hit pairs along the segment).
+/// Faces: each face with its three corners outside is sampled at the 10 interior points (i, j, k) / 6 of barycentric
+/// coordinates (i, j, k >= 1; the centroid among them), skipped without samples when its corners' distances to the
+/// skin all exceed its longest edge (no point of it can then reach the surface). A sampled test: a cut smaller than
+/// the samples' spacing (a sixth of the face) can be missed.
 EdgeCrossings measureEdgeCrossings(const btSoftBody& cloth, const BodyReference& body);
 
 /// Every measure now.
@@ -189,8 +199,8 @@ ClothMetrics measureCloth(const btSoftBody& cloth, const BodyReference& body, co
 
 /// The metrics as JSON: nodes, nan_nodes, nodes_inside_body, nodes_inside_ellipsoids, min_zeta,
 /// ellipsoid_penetration_m, contact_nodes, mean/median/p95/max_contact_gap_m (null where undefined: no
-/// ellipsoids, no contact gaps, infinite zeta), links, links_crossing_body, max_link_crossing_depth_m (null when
-/// the crossings were not measured).
+/// ellipsoids, no contact gaps, infinite zeta), links, links_crossing_body, max_link_crossing_depth_m, faces,
+/// faces_crossing_body, max_face_crossing_depth_m (null when the crossings were not measured).
 nlohmann::json toJson(const ClothMetrics& metrics);
 
 } // namespace bodyfit::metrics
