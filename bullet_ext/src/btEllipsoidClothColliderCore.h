@@ -118,6 +118,9 @@ private:
 		const void* m_edgeNodeData;
 		int m_edgeLinkCount;
 		int m_edgeNodeCount;
+		/// A listed edge's link no longer joins its two nodes (btSoftBody::randomizeConstraints shuffles the links in
+		/// place): list them again at the next call.
+		bool m_edgesStale;
 		/// Per edge, where its midpoint was (world frame, the body still since) when liftEdgesOffSkin last read the
 		/// field there, and that reading's margin above the edges' clearance (the midpoint may move that over the
 		/// field's Lipschitz bound before the reading no longer proves it clear; <= 0: no reading to reuse).
@@ -127,10 +130,11 @@ private:
 		btScalar m_edgeClearance; ///< and the clearance they were measured against
 		ContactRecord()
 			: m_softBody(0), m_current(false), m_edgeLinkData(0), m_edgeNodeData(0), m_edgeLinkCount(-1),
-			  m_edgeNodeCount(-1), m_edgeRevision(-1), m_edgeClearance(0)
+			  m_edgeNodeCount(-1), m_edgesStale(false), m_edgeRevision(-1), m_edgeClearance(0)
 		{
 		}
-		/// Lists the soft body's edges again if its links or nodes changed (size or place); true if it did.
+		/// Lists the soft body's edges again if its links or nodes changed (size, place, or order: m_edgesStale); true
+		/// if it did.
 		bool listEdges(const btSoftBody& softBody);
 	};
 

@@ -362,9 +362,10 @@ bool btEllipsoidClothColliderCore::ContactRecord::listEdges(const btSoftBody& so
 	const int numLinks = softBody.m_links.size(), numNodes = softBody.m_nodes.size();
 	const void* linkData = numLinks > 0 ? &softBody.m_links[0] : 0;
 	const void* nodeData = numNodes > 0 ? &softBody.m_nodes[0] : 0;
-	if (numLinks == m_edgeLinkCount && numNodes == m_edgeNodeCount && linkData == m_edgeLinkData &&
+	if (!m_edgesStale && numLinks == m_edgeLinkCount && numNodes == m_edgeNodeCount && linkData == m_edgeLinkData &&
 		nodeData == m_edgeNodeData)
 		return false;
+	m_edgesStale = false;
 	m_edgeLinkCount = numLinks;
 	m_edgeNodeCount = numNodes;
 	m_edgeLinkData = linkData;
@@ -531,7 +532,14 @@ void btEllipsoidClothColliderCore::liftEdge(btSoftBody* softBody, int link, int 
 	}
 	// An edge stretched past 1.5x its rest length spans something (a limb between nodes on both sides): a rise of
 	// its nodes cannot free it without carrying them far from the skin.
-	const btScalar rest = softBody->m_links[link].m_rl;
+	const btSoftBody::Link& edgeLink = softBody->m_links[link];
+	if (!((edgeLink.m_n[0] == &base[ia] && edgeLink.m_n[1] == &base[ib]) ||
+		  (edgeLink.m_n[0] == &base[ib] && edgeLink.m_n[1] == &base[ia])))
+	{
+		m_contactRecord->m_edgesStale = true; // the links were reordered since they were listed
+		return;
+	}
+	const btScalar rest = edgeLink.m_rl;
 	if ((xb - xa).length2() > btScalar(2.25) * rest * rest)
 		return;
 	const btVector3 midBody = geometry.toBody() * mid;

@@ -379,6 +379,37 @@ TEST_CASE("tight mode: a lower lift clearance rests the cloth closer and its edg
 	CHECK(quarter.meanCapDistance < half.meanCapDistance - 0.000125);
 }
 
+TEST_CASE("tight mode: the edge lift follows links shuffled by randomizeConstraints mid-run", "[bullet_ext][skinfield][edges]")
+{
+	std::unique_ptr<btEllipsoidCompoundShape> probe = sphereUnionWithField();
+	const double tol = analyticTolerance(*probe->getSkinField());
+	ClothScene scene(sphereUnionWithField());
+	REQUIRE(scene.install() != nullptr);
+	btSoftBody* cloth = scene.addPatch(btVector3(0, btScalar(0.125), 0), btScalar(0.3), 11);
+	for (int step = 0; step < 60; ++step)
+		scene.step(btScalar(1.0 / 60));
+	// SoftDemo's scenes call this; it permutes m_links in place (same size, same array), after the lift listed them.
+	cloth->randomizeConstraints();
+	for (int step = 0; step < 60; ++step)
+		scene.step(btScalar(1.0 / 60));
+	// Every edge at the skin (both ends within 1 cm), at most 1.5x stretched, clears it as without the shuffle.
+	double minEdge = 1e30;
+	int tested = 0;
+	for (int l = 0; l < cloth->m_links.size(); ++l)
+	{
+		const btSoftBody::Link& link = cloth->m_links[l];
+		const Eigen::Vector3d a = toE(link.m_n[0]->m_x), b = toE(link.m_n[1]->m_x);
+		if (link.m_bbending || sphereBody(a) > 0.01 || sphereBody(b) > 0.01 || (b - a).norm() > 1.5 * double(link.m_rl))
+			continue;
+		++tested;
+		for (int k = 1; k <= 9; ++k)
+			minEdge = std::min(minEdge, sphereBody(a + (b - a) * (k / 10.0)));
+	}
+	REQUIRE(tested >= 12);
+	CHECK(minEdge >= -tol);
+	CHECK(scene.collider()->getAccumulatedStats().m_nodesLifted > 0);
+}
+
 TEST_CASE("tight mode: switching the edge lift off brings raised nodes back to the skin offset", "[bullet_ext][skinfield][edges]")
 {
 	std::unique_ptr<btEllipsoidCompoundShape> probe = sphereUnionWithField();
