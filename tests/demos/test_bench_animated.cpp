@@ -8,12 +8,13 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <unistd.h>
 
 namespace fs = std::filesystem;
 
 TEST_CASE("bodyfit-bench animated: table, time series and 0 nodes inside for ours", "[cli][bench][animation]")
 {
-	const fs::path dir = fs::temp_directory_path() / "bodyfit_bench_animated";
+	const fs::path dir = fs::temp_directory_path() / ("bodyfit_bench_animated_" + std::to_string(long(::getpid())));
 	fs::remove_all(dir);
 	const bodyfit_test::ProgramRun r = bodyfit_test::runProgram(
 		BODYFIT_BENCH_EXE, "animated --steps 10 --bullet-steps 2 --repeats 1 --out \"" + dir.string() + "\"");

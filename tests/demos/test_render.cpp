@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iterator>
 #include <vector>
+#include <unistd.h>
 
 using namespace bodyfit::render;
 
@@ -100,7 +101,7 @@ TEST_CASE("writePng writes a valid PNG with the image's size", "[render]")
 	o.width = 123;
 	o.height = 77;
 	const Image im = renderTwoViews(testScene(), o);
-	const std::string path = (std::filesystem::temp_directory_path() / "bodyfit_test_render.png").string();
+	const std::string path = (std::filesystem::temp_directory_path() / ("bodyfit_test_render_" + std::to_string(long(::getpid())) + ".png")).string();
 	writePng(path, im);
 	std::ifstream in(path, std::ios::binary);
 	const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <unistd.h>
 
 namespace fs = std::filesystem;
 
@@ -25,7 +26,7 @@ bodyfit_test::ProgramRun drape(const std::string& args)
 
 fs::path freshDir(const std::string& name)
 {
-	const fs::path d = fs::temp_directory_path() / name;
+	const fs::path d = fs::temp_directory_path() / (name + "_" + std::to_string(long(::getpid()))); // per process (parallel ctest)
 	fs::remove_all(d);
 	fs::create_directories(d);
 	return d;

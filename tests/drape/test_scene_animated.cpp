@@ -18,6 +18,7 @@
 #include <catch2/catch.hpp>
 
 #include <filesystem>
+#include <unistd.h>
 
 using namespace bodyfit::drape;
 using nlohmann::json;
@@ -231,7 +232,7 @@ TEST_CASE("an animated body from a fit file with a skinning section follows the 
 	const BodyData fitted = loadBody(scene); // fitted at load
 	bodyfit::BodyFit fit = fitted.animation->fit;
 	fit.skinning = fitted.animation->binding;
-	const std::string path = (std::filesystem::temp_directory_path() / "bodyfit_animated_fit.json").string();
+	const std::string path = (std::filesystem::temp_directory_path() / ("bodyfit_animated_fit_" + std::to_string(long(::getpid())) + ".json")).string();
 	bodyfit::writeEllipsoidJson(path, fit);
 	scene.body.ellipsoids = path;
 	const BodyData read = loadBody(scene);
@@ -251,7 +252,7 @@ TEST_CASE("an animated body from a fit file with a skinning section follows the 
 	// The same fit file on another rig (male_young: other mesh size and bones) is refused, naming the section.
 	Scene other = scene;
 	other.body.animation->file = bodyfit_test::assetPath("animated/male_young.animated.glb");
-	CHECK_THAT(loadError(other), Catch::Contains("bodyfit_animated_fit.json: skinning."));
+	CHECK_THAT(loadError(other), Catch::Contains(path + ": skinning."));
 	std::filesystem::remove(path);
 }
 

@@ -9,6 +9,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <unistd.h>
 
 using bodyfit::FormatError;
 using namespace bodyfit::drape;
@@ -292,7 +293,7 @@ TEST_CASE("structural errors name the key", "[scene]")
 TEST_CASE("loadScene names the file for unreadable or malformed JSON", "[scene]")
 {
 	CHECK_THROWS_WITH(loadScene("/no/such/scene.json"), "/no/such/scene.json: cannot open scene file: does not exist");
-	const std::string path = (std::filesystem::temp_directory_path() / "bodyfit_bad_scene.json").string();
+	const std::string path = (std::filesystem::temp_directory_path() / ("bodyfit_bad_scene_" + std::to_string(long(::getpid())) + ".json")).string();
 	{
 		std::ofstream out(path);
 		out << "{ \"name\": \"x\", ";

@@ -11,6 +11,7 @@
 #include <functional>
 #include <fstream>
 #include <random>
+#include <unistd.h>
 
 using namespace bodyfit;
 
@@ -50,7 +51,7 @@ BodyFit sampleFit()
 
 std::string tempPath(const std::string& name)
 {
-	const std::filesystem::path dir = std::filesystem::temp_directory_path() / "bodyfit_test_ellipsoid_io";
+	const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("bodyfit_test_ellipsoid_io_" + std::to_string(long(::getpid()))); // per process (parallel ctest)
 	std::filesystem::create_directories(dir);
 	return (dir / name).string();
 }

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <string>
 #include <vector>
+#include <unistd.h>
 
 namespace bodyfit_test
 {
@@ -55,7 +56,7 @@ struct GltfRig
 inline std::string writeGltfRig(const GltfRig& rig, const std::string& name)
 {
 	using Json = nlohmann::json;
-	const std::filesystem::path dir = std::filesystem::temp_directory_path() / "bodyfit_test_rigs";
+	const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("bodyfit_test_rigs_" + std::to_string(long(::getpid()))); // per process: ctest runs tests in parallel
 	std::filesystem::create_directories(dir);
 	std::vector<unsigned char> bin;
 	Json views = Json::array(), accessors = Json::array();
