@@ -545,6 +545,15 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
 }
 
+int btEllipsoidClothColliderCore::candidatesAtLevel(const btSoftBody::Node& node, const btVector3& q,
+													const btVector3& x, const Substep& substep)
+{
+	const btScalar rise = m_nodeRise[&node - m_contactNodeBase];
+	if (!(rise > btScalar(0)) || !m_skinGeometry.field() || !m_config.m_liftEdges)
+		return 0;
+	return btEllipsoidWorldCache::PathQuery(m_current, substep.m_skin + rise).candidates(q, x, substep.m_candidates);
+}
+
 void btEllipsoidClothColliderCore::collideSweptNodes(btSoftBody* softBody, const btVector3* startPositions,
 													 const Substep& substep)
 {
@@ -582,8 +591,8 @@ BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoft
 {
 	const btVector3 x = node.m_x;
 	// 1. Broad phase: the ellipsoids the path grown by the skin can meet.
-	const int nc = substep.m_query.candidates(q, x, substep.m_candidates);
-	if (nc == 0)
+	int nc = substep.m_query.candidates(q, x, substep.m_candidates);
+	if (nc == 0 && !(m_nodeRise && (nc = candidatesAtLevel(node, q, x, substep)) > 0))
 		return false;
 	++m_lastStats.m_nodesTested;
 	if (m_skinGeometry.field())

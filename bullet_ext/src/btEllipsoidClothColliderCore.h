@@ -259,11 +259,16 @@ private:
 	/// The path against the field: no contact, placement at the first point at the skin offset, or push-out.
 	/// \return false (zeta is not tracked in tight mode; the field's minimum goes to the stats).
 	bool collideOnSkin(btSoftBody::Node& node, const btVector3& qStart, const Substep& substep, btScalar& zeta);
+	/// The broad phase of a node whose level is raised (Config::m_liftEdges) and whose path grown by the skin offset
+	/// meets no ellipsoid: the path grown by its level instead (where the union hugs the skin, a node resting at its
+	/// level can stand beyond the offset's reach; left out, it fell and was raised in turns). 0 for other nodes.
+	int candidatesAtLevel(const btSoftBody::Node& node, const btVector3& q, const btVector3& x, const Substep& substep);
 	/// collideOnSkin's level for a raised node (m_skinLevel: the skin offset plus `rise`) and where its path starts.
-	/// A node that starts a whole offset above its level has left the skin: its rise goes back to 0. One that starts
+	/// A node that starts or ends a whole offset above its level has left the skin: its rise goes back to 0 (so the
+	/// march through far bricks keeps its full far step, btSkinFieldGeometry::stepFrom). One that starts
 	/// between the offset and its level (the level rose since it was placed) starts from qb taken up to the level
 	/// along the gradient (true, qb moved), or is decided at the offset this substep where that fails.
-	bool raiseStart(btScalar& rise, btVector3& qb);
+	bool raiseStart(btScalar& rise, btVector3& qb, const btVector3& xb);
 	/// A node that starts within the skin: Newton on the field from x, else the union push-out (counted).
 	/// \return the field at the node's final position.
 	btScalar pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb, const btVector3& center,

@@ -89,7 +89,8 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btScalar
 	out.m_point = x;
 	out.m_normal.setValue(0, 0, 0);
 	out.m_limited = false;
-	const btScalar fq = m_field->distance(q);
+	bool farQ, farX, far;
+	const btScalar fq = m_field->distance(q, farQ);
 	out.m_startValue = fq;
 	out.m_value = fq;
 	if (fq - level < -m_tolerance)
@@ -102,14 +103,15 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btScalar
 	const btScalar len = d.length();
 	if (!(len > btScalar(0)))
 		return;
-	// Sphere tracing: at a point with clearance g (field - offset - seam) no point within g / L of it reads below the
-	// offset (the interpolant is L-Lipschitz inside bricks and jumps by at most the seam between stored bricks; where
-	// it reads +clamp, m_farStep bounds the step instead, see begin()). So the march steps that far along the path and
-	// cannot pass the first crossing. First the cheap case: the clear balls around both ends cover the path.
+	// Sphere tracing: at a point with clearance g (field - level - seam) no point within g / L of it reads below the
+	// level (the interpolant is L-Lipschitz inside bricks and jumps by at most the seam between stored bricks; where
+	// it reads +clamp, m_farStep less the rise bounds the step too, see begin() and stepFrom). So the march steps that
+	// far along the path and cannot pass the first crossing. First the cheap case: the clear balls around both ends
+	// cover the path.
 	btScalar g, gx;
-	btScalar f = fq, stepQ = stepFrom(fq, level, g);
-	const btScalar fx = m_field->distance(x);
-	const btScalar stepX = stepFrom(fx, level, gx);
+	btScalar f = fq, stepQ = stepFrom(fq, farQ, level, g);
+	const btScalar fx = m_field->distance(x, farX);
+	const btScalar stepX = stepFrom(fx, farX, level, gx);
 	out.m_value = fx;
 	if (stepQ >= btScalar(0) && stepQ + btMax(stepX, btScalar(0)) >= len)
 		return;
@@ -126,8 +128,8 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btScalar
 		s += stepQ;
 		if (s >= len || s + stepX >= len) // past x, or the clear ball around x covers the rest of the path
 			return;
-		f = m_field->distance(q + d * (s / len));
-		stepQ = stepFrom(f, level, g);
+		f = m_field->distance(q + d * (s / len), far);
+		stepQ = stepFrom(f, far, level, g);
 		out.m_limited = step + 1 == kMaxMarchSteps; // out of steps: stop at the last point known outside
 	}
 	out.m_outcome = btSkinPathHit::HIT;
@@ -227,13 +229,15 @@ btVector3 btEllipsoidClothColliderCore::skinSurfaceVelocity(const btVector3& wor
 	return (worldPoint - m_groupPrevious[m_skinGroup] * bindPoint) / dt;
 }
 
-bool btEllipsoidClothColliderCore::raiseStart(btScalar& rise, btVector3& qb)
+bool btEllipsoidClothColliderCore::raiseStart(btScalar& rise, btVector3& qb, const btVector3& xb)
 {
 	const btSkinFieldGeometry& geometry = skinGeometry();
 	const btScalar offset = geometry.offset();
 	const btScalar fq = geometry.field()->distance(qb);
-	if (fq > btScalar(2) * offset + rise)
-		rise = btScalar(0); // a whole offset above its level: it has left the skin, its edges no longer hold it up
+	// A whole offset above its level at the start or the end of the substep: it has left the skin (or is leaving
+	// it), and its edges no longer hold it up.
+	if (fq > btScalar(2) * offset + rise || geometry.field()->distance(xb) > btScalar(2) * offset + rise)
+		rise = btScalar(0);
 	m_skinLevel = offset + rise;
 	if (!(fq < m_skinLevel - geometry.tolerance() && fq >= offset - geometry.tolerance()))
 		return false; // at or above its level, or within the skin offset (the push-out's case)
@@ -261,7 +265,7 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 	btVector3 q = qStart;
 	if (m_nodeRise && m_config.m_liftEdges && m_skinGroup < 0 && m_nodeRise[&node - m_contactNodeBase] > btScalar(0))
 	{
-		if (raiseStart(m_nodeRise[&node - m_contactNodeBase], qb))
+		if (raiseStart(m_nodeRise[&node - m_contactNodeBase], qb, xb))
 			q = geometry.toWorld() * qb;
 	}
 	else

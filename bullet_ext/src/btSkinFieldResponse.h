@@ -52,8 +52,11 @@ public:
 	const btTransform& toWorld() const { return m_toWorld; }
 	/// The highest a node's level may stand above offset(): 3 offsets (the sag of a 5 cm edge over skin of radius
 	/// 5 cm is 6 mm; an edge that asks more spans something narrower than itself, an ear or a finger, which no rise of
-	/// its nodes clears), and less where the field's far step would shrink below an offset (see stepFrom).
-	btScalar maxRise() const { return btMax(btScalar(0), btMin(btScalar(3) * m_offset, m_farStep - m_offset)); }
+	/// its nodes clears), and never within an offset of the clamp (where the field stops measuring distance).
+	btScalar maxRise() const
+	{
+		return btMax(btScalar(0), btMin(btScalar(3) * m_offset, m_field->getClamp() - btScalar(2) * m_offset));
+	}
 
 	/// Every query below works on one node's level: the field value it rests at, offset() plus the rise its edges
 	/// asked (Config::m_liftEdges; btEllipsoidClothColliderCore::liftEdgesOffSkin), never below offset().
@@ -85,15 +88,18 @@ private:
 	/// pushOut from a point where the field f and its gradient are known.
 	bool newton(const btVector3& p, btScalar f, const btVector3& gradient, btScalar level, btVector3& out,
 				btScalar& value) const;
-	/// How far the march may step from a point where the field is f without passing the level field = level (see
-	/// the .cpp); `clear` gets the clearance the hit test compares with the hit band. Where the field reads +clamp the
-	/// far step shrinks by what the level stands above the offset (it bounds the distance to the offset level).
-	btScalar stepFrom(btScalar f, btScalar level, btScalar& clear) const
+	/// How far the march may step from a point where the field is f (farBrick: off the grid or in a far brick)
+	/// without passing the level field = level (see the .cpp); `clear` gets the clearance the hit test compares with
+	/// the hit band. Where the field reads +clamp the far step bounds the step (it shrinks by what the level stands
+	/// above the offset: it bounds the distance to the offset level); in a stored brick the field's own clearance
+	/// over L does too, and the larger of the two holds.
+	btScalar stepFrom(btScalar f, bool farBrick, btScalar level, btScalar& clear) const
 	{
 		if (f >= m_field->getClamp())
 		{
-			clear = btMax(btScalar(0), m_farStep - (level - m_offset));
-			return clear;
+			const btScalar far = btMax(btScalar(0), m_farStep - (level - m_offset));
+			clear = farBrick ? far : btMax(far, f - level - m_margin);
+			return farBrick ? far : btMax(far, (f - level - m_margin) * m_invLipschitz);
 		}
 		clear = f - level - m_margin;
 		return clear * m_invLipschitz;

@@ -103,6 +103,19 @@ public:
 		return trilinear(s, t);
 	}
 
+	/// The same, and whether p lies off the grid or in a far brick (whose +-clamp is a bound on the distance, not an
+	/// interpolated sample).
+	btScalar distance(const btVector3& p, bool& farBrick) const
+	{
+		const short* s;
+		btVector3 t;
+		const int where = locate(p, s, t);
+		farBrick = where != 0;
+		if (farBrick)
+			return where == 1 ? m_clamp : -m_clamp;
+		return trilinear(s, t);
+	}
+
 	/// The field and its unnormalised gradient at p (the interpolant's; zero in far bricks and off the grid).
 	btScalar distanceAndGradient(const btVector3& p, btVector3& gradient) const
 	{
