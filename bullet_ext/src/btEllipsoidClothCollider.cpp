@@ -545,13 +545,20 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
 }
 
+btScalar* btEllipsoidClothColliderCore::raisedLevel(const btSoftBody::Node& node)
+{
+	if (!m_nodeRise || !m_config.m_liftEdges || m_skinGroup >= 0 || !m_skinGeometry.field())
+		return 0;
+	btScalar* rise = &m_nodeRise[&node - m_contactNodeBase];
+	return *rise > btScalar(0) ? rise : 0;
+}
+
 int btEllipsoidClothColliderCore::candidatesAtLevel(const btSoftBody::Node& node, const btVector3& q,
 													const btVector3& x, const Substep& substep)
 {
-	const btScalar rise = m_nodeRise[&node - m_contactNodeBase];
-	if (!(rise > btScalar(0)) || !m_skinGeometry.field() || !m_config.m_liftEdges)
-		return 0;
-	return btEllipsoidWorldCache::PathQuery(m_current, substep.m_skin + rise).candidates(q, x, substep.m_candidates);
+	const btScalar* rise = raisedLevel(node);
+	return rise ? btEllipsoidWorldCache::PathQuery(m_current, substep.m_skin + *rise).candidates(q, x, substep.m_candidates)
+				: 0;
 }
 
 void btEllipsoidClothColliderCore::collideSweptNodes(btSoftBody* softBody, const btVector3* startPositions,

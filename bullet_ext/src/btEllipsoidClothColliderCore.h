@@ -259,6 +259,9 @@ private:
 	/// The path against the field: no contact, placement at the first point at the skin offset, or push-out.
 	/// \return false (zeta is not tracked in tight mode; the field's minimum goes to the stats).
 	bool collideOnSkin(btSoftBody::Node& node, const btVector3& qStart, const Substep& substep, btScalar& zeta);
+	/// The node's rise when its level is raised and applies (Config::m_liftEdges on, the static field's response, not a
+	/// bone's), else 0: the one test collideOnSkin and candidatesAtLevel share.
+	btScalar* raisedLevel(const btSoftBody::Node& node);
 	/// The broad phase of a node whose level is raised (Config::m_liftEdges) and whose path grown by the skin offset
 	/// meets no ellipsoid: the path grown by its level instead (where the union hugs the skin, a node resting at its
 	/// level can stand beyond the offset's reach; left out, it fell and was raised in turns). 0 for other nodes.

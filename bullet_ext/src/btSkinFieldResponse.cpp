@@ -263,9 +263,9 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 	// The node's level: the skin offset, raised where its edges sag into the skin (liftEdgesOffSkin; not on a bone's
 	// field, whose substeps never lift, nor once the lift is switched off).
 	btVector3 q = qStart;
-	if (m_nodeRise && m_config.m_liftEdges && m_skinGroup < 0 && m_nodeRise[&node - m_contactNodeBase] > btScalar(0))
+	if (btScalar* rise = raisedLevel(node))
 	{
-		if (raiseStart(m_nodeRise[&node - m_contactNodeBase], qb, xb))
+		if (raiseStart(*rise, qb, xb))
 			q = geometry.toWorld() * qb;
 	}
 	else
