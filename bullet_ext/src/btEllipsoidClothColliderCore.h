@@ -253,7 +253,10 @@ private:
 							const btVector3& bodyVelocity, const btVector3& before, const btVector3& surface,
 							btScalar dt);
 	/// Moves the node by `displacement` if that path enters no ellipsoid.
-	void slideAlong(btSoftBody::Node& node, const btVector3& displacement, const Substep& substep);
+	void slideAlong(btSoftBody::Node& node, const btVector3& displacement, int touching, const Substep& substep);
+	/// True when the contact list of the node's position (`touching` entries in m_contactCandidates) holds every
+	/// ellipsoid a slide by `displacement` can meet.
+	static bool slideCovered(const btVector3& displacement, const Substep& substep);
 
 	// Tight mode (btSkinFieldResponse.cpp): contact decided on the skin field for a node the broad phase kept.
 	/// The path against the field: no contact, placement at the first point at the skin offset, or push-out.
