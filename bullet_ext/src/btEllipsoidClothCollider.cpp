@@ -421,7 +421,9 @@ void btEllipsoidClothColliderCore::beginContactRecord(const btSoftBody* softBody
 	record.m_skinMeshHints.resize(n, -1);
 	m_skinMeshHints = n > 0 ? &record.m_skinMeshHints[0] : 0;
 	record.m_rise.resize(n, btScalar(0));
-	m_nodeRise = n > 0 ? &record.m_rise[0] : 0;
+	// Levels apply only with the lift on and the static field this substep (not while the ellipsoids move by
+	// themselves); otherwise no rise is read, and collideNode skips candidatesAtLevel for nodes without candidates.
+	m_nodeRise = n > 0 && m_config.m_liftEdges && m_skinGeometry.field() ? &record.m_rise[0] : 0;
 	m_contactNodeBase = n > 0 ? &softBody->m_nodes[0] : 0;
 	m_contactRecord = &record;
 }
@@ -547,7 +549,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 
 btScalar* btEllipsoidClothColliderCore::raisedLevel(const btSoftBody::Node& node)
 {
-	if (!m_nodeRise || !m_config.m_liftEdges || m_skinGroup >= 0 || !m_skinGeometry.field())
+	if (!m_nodeRise || m_skinGroup >= 0) // (m_nodeRise is null unless the lift is on with the static field)
 		return 0;
 	btScalar* rise = &m_nodeRise[&node - m_contactNodeBase];
 	return *rise > btScalar(0) ? rise : 0;
