@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <fstream>
 #include <numeric>
+#include <sstream>
 #include <unordered_map>
 #include <vector>
 
@@ -102,6 +103,42 @@ double bboxDiagonal(const Eigen::MatrixX3d& V)
 }
 
 /// Distance between consecutive 32-bit floats near |x| (assimp 5.2 as packaged stores coordinates as float).
+/// "" or, when one vertex lies more than 1000 times farther from the vertices' per-axis median than half of the
+/// vertices do (a single wild coordinate stretches the bounding box, and with it the weld and area tolerances, until
+/// every face collapses), a description of the farthest one.
+std::string strayVertex(const Eigen::MatrixX3d& V)
+{
+	const Eigen::Index n = V.rows();
+	if (n < 2)
+		return "";
+	Eigen::RowVector3d middle;
+	std::vector<double> values(static_cast<std::size_t>(n));
+	for (int k = 0; k < 3; ++k)
+	{
+		for (Eigen::Index i = 0; i < n; ++i)
+			values[std::size_t(i)] = V(i, k);
+		std::nth_element(values.begin(), values.begin() + n / 2, values.end());
+		middle[k] = values[std::size_t(n / 2)];
+	}
+	Eigen::Index farthest = 0;
+	for (Eigen::Index i = 0; i < n; ++i)
+	{
+		values[std::size_t(i)] = (V.row(i) - middle).norm();
+		if (values[std::size_t(i)] > values[std::size_t(farthest)])
+			farthest = i;
+	}
+	const double far = values[std::size_t(farthest)];
+	std::nth_element(values.begin(), values.begin() + n / 2, values.end());
+	const double half = values[std::size_t(n / 2)];
+	if (!(far > 1000.0 * half))
+		return "";
+	std::ostringstream out;
+	out.precision(3);
+	out << "vertex " << farthest << " at (" << V(farthest, 0) << ", " << V(farthest, 1) << ", " << V(farthest, 2)
+		<< ") lies " << far << " m from the middle of the mesh, where half of the vertices lie within " << half << " m";
+	return out.str();
+}
+
 double floatSpacing(double x)
 {
 	int exponent = 0;
@@ -333,7 +370,12 @@ LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const st
 		faces.push_back(t);
 	}
 	if (faces.empty())
-		throw InvalidInputError(name + ": every face is degenerate (zero area)");
+	{
+		const std::string stray = strayVertex(V);
+		throw InvalidInputError(name + ": " +
+								(stray.empty() ? std::string("every face is degenerate (zero area)")
+											   : stray + " (a corrupt coordinate?): every face is degenerate at that scale"));
+	}
 	welded.F.resize(Eigen::Index(faces.size()), 3);
 	for (size_t f = 0; f < faces.size(); ++f)
 		welded.F.row(Eigen::Index(f)) = faces[f].transpose();

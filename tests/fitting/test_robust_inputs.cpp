@@ -102,6 +102,26 @@ TEST_CASE("robust catalogue: unusable geometry is InvalidInputError naming the p
 	// Five copies of one point: welding leaves one vertex, every face is degenerate.
 	const std::string identical = inputError("robust_identical.obj");
 	CHECK((identical.find("degenerate") != std::string::npos || identical.find("fewer than 4") != std::string::npos));
+	// One wild coordinate (a corrupt float in a binary file) stretches the box, and with it the weld and area
+	// tolerances, until every face is degenerate: the error names that vertex, not only the symptom. A unit cube's 8
+	// corners lie within 0.87 m of their median; the 9th vertex at 1e30 m is far beyond 1000x that.
+	TriMesh wild;
+	wild.V.resize(9, 3);
+	for (int i = 0; i < 8; ++i)
+		wild.V.row(i) << double(i & 1), double((i >> 1) & 1), double((i >> 2) & 1);
+	wild.V.row(8) << 1e30, 0.5, 0.5;
+	wild.F.resize(4, 3);
+	wild.F << 0, 1, 3, 0, 3, 2, 4, 5, 8, 1, 5, 8;
+	std::string wildError;
+	try
+	{
+		repairMesh(wild, LoadOptions(), "wild.obj");
+	}
+	catch (const InvalidInputError& e)
+	{
+		wildError = e.what();
+	}
+	CHECK_THAT(wildError, Catch::Contains("wild.obj: vertex 8 at (1e+30") && Catch::Contains("corrupt coordinate"));
 	LoadOptions badScale;
 	badScale.scale = -1.0;
 	CHECK_THAT(inputError("tetra.obj", badScale), Catch::Contains("scale must be a positive finite number"));
