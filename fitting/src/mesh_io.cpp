@@ -102,7 +102,6 @@ double bboxDiagonal(const Eigen::MatrixX3d& V)
 	return (V.colwise().maxCoeff() - V.colwise().minCoeff()).norm();
 }
 
-/// Distance between consecutive 32-bit floats near |x| (assimp 5.2 as packaged stores coordinates as float).
 /// "" or, when one vertex lies more than 1000 times farther from the vertices' per-axis median than half of the
 /// vertices do (a single wild coordinate stretches the bounding box, and with it the weld and area tolerances, until
 /// every face collapses), a description of the farthest one.
@@ -139,6 +138,7 @@ std::string strayVertex(const Eigen::MatrixX3d& V)
 	return out.str();
 }
 
+/// Distance between consecutive 32-bit floats near |x| (assimp 5.2 as packaged stores coordinates as float).
 double floatSpacing(double x)
 {
 	int exponent = 0;
