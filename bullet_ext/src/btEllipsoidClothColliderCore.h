@@ -172,7 +172,7 @@ private:
 	unsigned char* m_contactFlags;             ///< the flags collide() fills (0 outside collide())
 	unsigned char* m_escapeHints;              ///< that soft body's escape hints (0 outside collide())
 	int* m_skinMeshHints;                      ///< that soft body's skin-mesh hints (0 outside collide())
-	btScalar* m_nodeRise;                      ///< that soft body's node rises (0 outside collide())
+	btScalar* m_nodeRise;                      ///< that soft body's node rises (0 outside collide(), or when no level applies)
 	btScalar m_skinLevel;                      ///< collideOnSkin: the level of the node it decides
 	const btSoftBody::Node* m_contactNodeBase; ///< node 0 of that soft body
 	ContactRecord* m_contactRecord;            ///< that soft body's record (0 outside collide())

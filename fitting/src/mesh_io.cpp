@@ -3,6 +3,7 @@
 
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/input_files.h"
+#include "bodyfit/fitting/statistics.h"
 
 #include <Eigen/Geometry>
 #include <assimp/Importer.hpp>
@@ -111,24 +112,14 @@ std::string strayVertex(const Eigen::MatrixX3d& V)
 	if (n < 2)
 		return "";
 	Eigen::RowVector3d middle;
-	std::vector<double> values(static_cast<std::size_t>(n));
 	for (int k = 0; k < 3; ++k)
-	{
-		for (Eigen::Index i = 0; i < n; ++i)
-			values[std::size_t(i)] = V(i, k);
-		std::nth_element(values.begin(), values.begin() + n / 2, values.end());
-		middle[k] = values[std::size_t(n / 2)];
-	}
-	Eigen::Index farthest = 0;
+		middle[k] = median(std::vector<double>(V.col(k).data(), V.col(k).data() + n));
+	std::vector<double> distance(static_cast<std::size_t>(n));
 	for (Eigen::Index i = 0; i < n; ++i)
-	{
-		values[std::size_t(i)] = (V.row(i) - middle).norm();
-		if (values[std::size_t(i)] > values[std::size_t(farthest)])
-			farthest = i;
-	}
-	const double far = values[std::size_t(farthest)];
-	std::nth_element(values.begin(), values.begin() + n / 2, values.end());
-	const double half = values[std::size_t(n / 2)];
+		distance[std::size_t(i)] = (V.row(i) - middle).norm();
+	const Eigen::Index farthest = std::max_element(distance.begin(), distance.end()) - distance.begin();
+	const double far = distance[std::size_t(farthest)];
+	const double half = median(distance);
 	if (!(far > 1000.0 * half))
 		return "";
 	std::ostringstream out;

@@ -112,15 +112,8 @@ TEST_CASE("robust catalogue: unusable geometry is InvalidInputError naming the p
 	wild.V.row(8) << 1e30, 0.5, 0.5;
 	wild.F.resize(4, 3);
 	wild.F << 0, 1, 3, 0, 3, 2, 4, 5, 8, 1, 5, 8;
-	std::string wildError;
-	try
-	{
-		repairMesh(wild, LoadOptions(), "wild.obj");
-	}
-	catch (const InvalidInputError& e)
-	{
-		wildError = e.what();
-	}
+	const std::string wildError =
+		oneLineError<InvalidInputError>([&] { repairMesh(wild, LoadOptions(), "wild.obj"); }, "wild.obj");
 	CHECK_THAT(wildError, Catch::Contains("wild.obj: vertex 8 at (1e+30") && Catch::Contains("corrupt coordinate"));
 	LoadOptions badScale;
 	badScale.scale = -1.0;
