@@ -168,7 +168,7 @@ struct MeshTopology
 	std::vector<int> edgeStart, onEdge;
 	std::vector<Eigen::Vector3d> faceN, vertexN, edgeN;
 
-	explicit MeshTopology(const TriMesh& mesh)
+	MeshTopology(const TriMesh& mesh, int threads)
 	{
 		const int nv = mesh.vertexCount(), nf = mesh.faceCount();
 		start.assign(std::size_t(nv) + 1, 0);
@@ -182,7 +182,7 @@ struct MeshTopology
 		for (int f = 0; f < nf; ++f)
 			for (int k = 0; k < 3; ++k)
 				faces[std::size_t(fill[std::size_t(mesh.F(f, k))]++)] = f;
-		normals(mesh);
+		normals(mesh, threads);
 		edgeFaceLists(mesh);
 		edgeN.assign(std::size_t(nf) * 3, Eigen::Vector3d::Zero());
 		for (std::size_t e = 0; e < std::size_t(nf) * 3; ++e)
@@ -216,25 +216,34 @@ private:
 			}
 	}
 
-	void normals(const TriMesh& mesh)
+	/// faceN and vertexN. Each face's normal and corner angles on `threads` threads, then summed into the vertices in
+	/// face order (so the sums do not depend on the thread count).
+	void normals(const TriMesh& mesh, int threads)
 	{
-		faceN.assign(std::size_t(mesh.faceCount()), Eigen::Vector3d::Zero());
+		const int nf = mesh.faceCount();
+		faceN.assign(std::size_t(nf), Eigen::Vector3d::Zero());
 		vertexN.assign(std::size_t(mesh.vertexCount()), Eigen::Vector3d::Zero());
-		for (int f = 0; f < mesh.faceCount(); ++f)
-		{
-			const Eigen::Vector3d p[3] = {mesh.V.row(mesh.F(f, 0)).transpose(), mesh.V.row(mesh.F(f, 1)).transpose(),
-										  mesh.V.row(mesh.F(f, 2)).transpose()};
-			const Eigen::Vector3d c = (p[1] - p[0]).cross(p[2] - p[0]);
-			if (!(c.norm() > 0.0))
-				continue;
-			faceN[std::size_t(f)] = c.normalized();
-			for (int k = 0; k < 3; ++k)
+		std::vector<double> angle(std::size_t(nf) * 3, 0.0);
+		parallelRanges(nf, threads, [&](int first, int end) {
+			for (int f = first; f < end; ++f)
 			{
-				const Eigen::Vector3d a = p[(k + 1) % 3] - p[k], b = p[(k + 2) % 3] - p[k];
-				const double angle = std::atan2(a.cross(b).norm(), a.dot(b));
-				vertexN[std::size_t(mesh.F(f, k))] += angle * faceN[std::size_t(f)];
+				const Eigen::Vector3d p[3] = {mesh.V.row(mesh.F(f, 0)).transpose(), mesh.V.row(mesh.F(f, 1)).transpose(),
+											  mesh.V.row(mesh.F(f, 2)).transpose()};
+				const Eigen::Vector3d c = (p[1] - p[0]).cross(p[2] - p[0]);
+				if (!(c.norm() > 0.0))
+					continue;
+				faceN[std::size_t(f)] = c.normalized();
+				for (int k = 0; k < 3; ++k)
+				{
+					const Eigen::Vector3d a = p[(k + 1) % 3] - p[k], b = p[(k + 2) % 3] - p[k];
+					angle[std::size_t(f) * 3 + std::size_t(k)] = std::atan2(a.cross(b).norm(), a.dot(b));
+				}
 			}
-		}
+		});
+		for (int f = 0; f < nf; ++f)
+			if (!faceN[std::size_t(f)].isZero())
+				for (int k = 0; k < 3; ++k)
+					vertexN[std::size_t(mesh.F(f, k))] += angle[std::size_t(f) * 3 + std::size_t(k)] * faceN[std::size_t(f)];
 	}
 };
 
@@ -332,8 +341,8 @@ void latticeRange(const Lattice& L, const Eigen::Vector3d& boxMin, const Eigen::
 	}
 }
 
-/// The threads of the bake split the lattice into slabs of whole brick layers across y (the body's long axis, so
-/// that the parts hold about the same skin).
+/// The threads of the bake split the lattice into slabs of lattice layers across y (the body's long axis, so that
+/// the parts hold about the same skin).
 constexpr int kSlabAxis = 1;
 
 /// Lattice layers [lo, hi] along kSlabAxis: the part of the lattice one thread of the bake writes.
@@ -341,8 +350,8 @@ struct LatticeSlab
 {
 	long long lo = 0, hi = -1;
 
-	/// The slab of brick layers [first, end) (every layer of those bricks' owned points).
-	static LatticeSlab ofBricks(int first, int end) { return {(long long)first * B, (long long)end * B - 1}; }
+	/// The slab of lattice layers [first, end).
+	static LatticeSlab ofLayers(int first, int end) { return {(long long)first, (long long)end - 1}; }
 	/// The box [boxLo, boxHi] grown by `grow` meets the slab's layers.
 	bool meets(const Lattice& L, const Eigen::Vector3d& boxLo, const Eigen::Vector3d& boxHi, double grow) const
 	{
@@ -692,23 +701,28 @@ void exactDistancesInSlab(const TriMesh& mesh, const MeshTopology& topo, const s
 	}
 }
 
-/// Step 2 on `threads` threads, each on a slab of brick layers of its own, the slabs cut so that each holds about as
-/// much skin area (each triangle counted in the layer of its box's centre; the work goes with the band's volume), in
-/// whole square millimetres so that the cut is exact arithmetic.
+/// Step 2 on `threads` threads, each on a slab of lattice layers of its own, the slabs cut so that each holds about
+/// as much work: each triangle counts in the layer of its box's centre, by its area (the band's volume, which its
+/// region scans fill) plus kTriangleOverhead (setting up its face, edge and vertex regions), in whole square
+/// millimetres so that the cut is exact arithmetic.
 void exactDistances(const TriMesh& mesh, const MeshTopology& topo, const std::vector<PlaneTriangle>& planes,
 					const std::vector<int>& planeOf, const Lattice& L, double clamp, int threads, OwnedPoints& owned)
 {
-	const int layers = L.dims[kSlabAxis];
-	std::vector<long long> before(std::size_t(layers) + 1, 0); // skin area (mm^2) in the layers below each layer
+	// mm^2: set on the bundled bodies, whose two slabs then differ by 0.1-0.8 ms of 15-17 ms (1-2 ms by area alone,
+	// 1.2-4 ms with whole brick layers)
+	constexpr long long kTriangleOverhead = 150;
+	const int layers = L.ownedExtent(kSlabAxis);
+	std::vector<long long> before(std::size_t(layers) + 1, 0); // work below each lattice layer
 	for (const PlaneTriangle& T : planes)
 	{
-		const double u = (0.5 * (T.boxMin + T.boxMax)[kSlabAxis] - L.origin[kSlabAxis]) / (B * L.h);
-		before[std::size_t(std::clamp(int(u), 0, layers - 1)) + 1] += 1 + (long long)(0.5e6 * T.x1 * T.y2);
+		const double u = (0.5 * (T.boxMin + T.boxMax)[kSlabAxis] - L.origin[kSlabAxis]) / L.h;
+		before[std::size_t(std::clamp(int(u), 0, layers - 1)) + 1] +=
+			kTriangleOverhead + (long long)(0.5e6 * T.x1 * T.y2);
 	}
 	for (int j = 0; j < layers; ++j)
 		before[std::size_t(j) + 1] += before[std::size_t(j)];
 	const int parts = std::max(1, std::min(threads, layers));
-	std::vector<int> cut(std::size_t(parts) + 1, layers); // slab p: layers [cut[p], cut[p + 1])
+	std::vector<int> cut(std::size_t(parts) + 1, layers); // slab p: lattice layers [cut[p], cut[p + 1])
 	cut[0] = 0;
 	for (int p = 1; p < parts; ++p)
 	{
@@ -720,7 +734,7 @@ void exactDistances(const TriMesh& mesh, const MeshTopology& topo, const std::ve
 		for (int p = first; p < end; ++p)
 			if (cut[std::size_t(p)] < cut[std::size_t(p) + 1])
 				exactDistancesInSlab(mesh, topo, planes, planeOf, L, clamp,
-									 LatticeSlab::ofBricks(cut[std::size_t(p)], cut[std::size_t(p) + 1]), owned);
+									 LatticeSlab::ofLayers(cut[std::size_t(p)], cut[std::size_t(p) + 1]), owned);
 	});
 }
 
@@ -786,7 +800,10 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints&
 					for (int a = 0; a < B; ++a)
 					{
 						const long long p = slot * kOwned + a + B * (b + B * c);
-						if (!owned.touched(p))
+						// A point that was never measured keeps sign 0, so opposite nonzero signs come first: most
+						// points are rejected on the signs alone, without reading their distances.
+						const std::int8_t sp = owned.sign[std::size_t(p)];
+						if (sp == 0 || !owned.touched(p))
 							continue;
 						const int local[3] = {a, b, c}, stride[3] = {1, B, B * B};
 						for (int axis = 0; axis < 3; ++axis)
@@ -796,7 +813,9 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints&
 								q = p + stride[axis];
 							else if (const int next = above[std::size_t(slot) * 3 + std::size_t(axis)]; next >= 0)
 								q = (long long)next * kOwned + (p % kOwned) - (long long)(B - 1) * stride[axis];
-							q = q >= 0 && owned.touched(q) ? q : -1;
+							if (q < 0 || owned.sign[std::size_t(q)] != -sp)
+								continue;
+							q = owned.touched(q) ? q : -1;
 							if (suspect(p, q))
 								pairs[std::size_t(part)].push_back(p), pairs[std::size_t(part)].push_back(q);
 						}
@@ -1155,51 +1174,50 @@ int sampleDivisions(double length, double voxel)
 	return int(std::clamp(std::ceil(length / voxel), 3.0, 64.0));
 }
 
+/// The number of skinSamplePoints that face f adds after the vertices: the inner points of the edges it runs up the
+/// indices along (each edge once), then its own inner points.
+std::size_t faceSampleCount(const TriMesh& mesh, int f, double voxel)
+{
+	std::size_t count = 0;
+	double longest = 0.0;
+	for (int k = 0; k < 3; ++k)
+	{
+		const double length = (mesh.V.row(mesh.F(f, (k + 1) % 3)) - mesh.V.row(mesh.F(f, k))).norm();
+		longest = std::max(longest, length);
+		if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3))
+			count += std::size_t(sampleDivisions(length, voxel) - 1);
+	}
+	const std::size_t n = std::size_t(sampleDivisions(longest, voxel));
+	return count + (n - 1) * (n - 2) / 2; // i, j >= 1, i + j <= n - 1
+}
+
 /// The number of points skinSamplePoints gives.
 std::size_t skinSampleCount(const TriMesh& mesh, double voxel)
 {
 	std::size_t count = std::size_t(mesh.vertexCount());
 	for (int f = 0; f < mesh.faceCount(); ++f)
-	{
-		double longest = 0.0;
-		for (int k = 0; k < 3; ++k)
-		{
-			const double length = (mesh.V.row(mesh.F(f, (k + 1) % 3)) - mesh.V.row(mesh.F(f, k))).norm();
-			longest = std::max(longest, length);
-			if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3))
-				count += std::size_t(sampleDivisions(length, voxel) - 1);
-		}
-		const std::size_t n = std::size_t(sampleDivisions(longest, voxel));
-		count += (n - 1) * (n - 2) / 2; // i, j >= 1, i + j <= n - 1
-	}
+		count += faceSampleCount(mesh, f, voxel);
 	return count;
 }
 
-/// Calls visit(p) for every point of skinSamplePoints, in its order (so the bake can locate them without storing
-/// them).
+/// Calls visit(p) for the faceSampleCount points face f adds to skinSamplePoints, in their order.
 template <class Visit>
-void forEachSkinSample(const TriMesh& mesh, double voxel, Visit visit)
+void forEachFaceSample(const TriMesh& mesh, int f, double voxel, Visit visit)
 {
-	for (int v = 0; v < mesh.vertexCount(); ++v)
-		visit(Eigen::Vector3d(mesh.V.row(v).transpose()));
-	for (int f = 0; f < mesh.faceCount(); ++f)
-	{
-		const Eigen::Vector3d p[3] = {mesh.V.row(mesh.F(f, 0)).transpose(), mesh.V.row(mesh.F(f, 1)).transpose(),
-									  mesh.V.row(mesh.F(f, 2)).transpose()};
-		for (int k = 0; k < 3; ++k)
-			if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3)) // each edge once: from the face where it runs up the indices
-			{
-				const Eigen::Vector3d &a = p[k], &b = p[(k + 1) % 3];
-				const int n = sampleDivisions((b - a).norm(), voxel);
-				for (int i = 1; i < n; ++i)
-					visit(Eigen::Vector3d((double(n - i) * a + double(i) * b) / double(n)));
-			}
-		const int n =
-			sampleDivisions(std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()}), voxel);
-		for (int i = 1; i < n; ++i)
-			for (int j = 1; i + j < n; ++j)
-				visit(Eigen::Vector3d((double(i) * p[0] + double(j) * p[1] + double(n - i - j) * p[2]) / double(n)));
-	}
+	const Eigen::Vector3d p[3] = {mesh.V.row(mesh.F(f, 0)).transpose(), mesh.V.row(mesh.F(f, 1)).transpose(),
+								  mesh.V.row(mesh.F(f, 2)).transpose()};
+	for (int k = 0; k < 3; ++k)
+		if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3)) // each edge once: from the face where it runs up the indices
+		{
+			const Eigen::Vector3d &a = p[k], &b = p[(k + 1) % 3];
+			const int n = sampleDivisions((b - a).norm(), voxel);
+			for (int i = 1; i < n; ++i)
+				visit(Eigen::Vector3d((double(n - i) * a + double(i) * b) / double(n)));
+		}
+	const int n = sampleDivisions(std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()}), voxel);
+	for (int i = 1; i < n; ++i)
+		for (int j = 1; i + j < n; ++j)
+			visit(Eigen::Vector3d((double(i) * p[0] + double(j) * p[1] + double(n - i - j) * p[2]) / double(n)));
 }
 
 /// The cells the skin samples read, located once (the lowering and the final reading both need them), in sample
@@ -1213,22 +1231,63 @@ struct SkinCells
 	std::vector<int> order;      ///< cells by layer: layer j's are order[layerStart[j] .. layerStart[j + 1])
 	std::vector<int> layerStart;
 
-	/// The cells of skinSamplePoints(mesh, L.h), located as the points are made.
-	SkinCells(const Lattice& L, const TriMesh& mesh, const OwnedPoints& owned)
+	/// The cells of skinSamplePoints(mesh, L.h), located as the points are made, on `threads` threads: each face's
+	/// points go to the slots after the vertices and the faces before it, so the order is that of skinSamplePoints
+	/// whatever the thread count.
+	SkinCells(const Lattice& L, const TriMesh& mesh, const OwnedPoints& owned, int threads)
 	{
-		const int layers = L.dims[kSlabAxis];
-		const std::size_t count = skinSampleCount(mesh, L.h);
-		cell.reserve(count);
-		base.reserve(count);
-		layerStart.assign(std::size_t(layers) + 1, 0);
-		forEachSkinSample(mesh, L.h, [&](const Eigen::Vector3d& p) {
-			CellLocation c;
-			if (locateCell(L.origin, L.h, L.dims, p, c))
-			{
-				cell.push_back(c), base.push_back(interiorCellBase(L, owned, c));
-				++layerStart[std::size_t(c.brick[kSlabAxis]) + 1];
-			}
+		const int nv = mesh.vertexCount(), nf = mesh.faceCount();
+		std::vector<std::size_t> faceStart(std::size_t(nf) + 1, std::size_t(nv));
+		for (int f = 0; f < nf; ++f)
+			faceStart[std::size_t(f) + 1] = faceStart[std::size_t(f)] + faceSampleCount(mesh, f, L.h);
+		cell.resize(faceStart.back());
+		base.resize(faceStart.back());
+		std::vector<char> onGrid(faceStart.back(), 0);
+		auto locate = [&](std::size_t i, const Eigen::Vector3d& p) {
+			if (locateCell(L.origin, L.h, L.dims, p, cell[i]))
+				base[i] = interiorCellBase(L, owned, cell[i]), onGrid[i] = 1;
+		};
+		// Parts of about as many samples each: item i < nv is vertex i, item nv + f is face f's samples.
+		const std::size_t total = faceStart.back();
+		auto firstItem = [&](int part, int parts) {
+			const std::size_t at = total * std::size_t(part) / std::size_t(parts);
+			if (at <= std::size_t(nv))
+				return int(at);
+			return nv + int(std::lower_bound(faceStart.begin(), faceStart.end() - 1, at) - faceStart.begin());
+		};
+		const int parts = std::max(1, std::min(threads, nv + nf));
+		parallelRanges(parts, parts, [&](int firstPart, int endPart) {
+			for (int item = firstItem(firstPart, parts); item < firstItem(endPart, parts); ++item)
+				if (item < nv)
+					locate(std::size_t(item), mesh.V.row(item).transpose());
+				else
+				{
+					std::size_t i = faceStart[std::size_t(item - nv)];
+					forEachFaceSample(mesh, item - nv, L.h, [&](const Eigen::Vector3d& p) { locate(i++, p); });
+				}
 		});
+		keepOnGrid(onGrid);
+		sortByLayer(L.dims[kSlabAxis]);
+	}
+
+private:
+	/// Drops the samples off the grid, keeping the order of the others.
+	void keepOnGrid(const std::vector<char>& onGrid)
+	{
+		std::size_t kept = 0;
+		for (std::size_t i = 0; i < cell.size(); ++i)
+			if (onGrid[i])
+				cell[kept] = cell[i], base[kept] = base[i], ++kept;
+		cell.resize(kept);
+		base.resize(kept);
+	}
+
+	/// order and layerStart: a counting sort of the cells by their brick layer along kSlabAxis.
+	void sortByLayer(int layers)
+	{
+		layerStart.assign(std::size_t(layers) + 1, 0);
+		for (const CellLocation& c : cell)
+			++layerStart[std::size_t(c.brick[kSlabAxis]) + 1];
 		for (int j = 0; j < layers; ++j)
 			layerStart[std::size_t(j) + 1] += layerStart[std::size_t(j)];
 		order.resize(cell.size());
@@ -1277,11 +1336,12 @@ double largestSkinReading(const Lattice& L, const SkinCells& skin, const OwnedPo
 	const int n = int(skin.cell.size());
 	std::vector<double> worst(std::size_t(std::max(1, std::min(threads, n))), 0.0);
 	parallelParts(n, threads, [&](int part, int first, int end) {
+		double largest = 0.0; // kept in a register: the parts' slots share a cache line
 		for (std::size_t i = std::size_t(first); i < std::size_t(end); ++i)
-			worst[std::size_t(part)] =
-				std::max(worst[std::size_t(part)],
-						 std::abs(std::clamp(cellReading(L, owned, neighbours, skin.cell[i], skin.base[i]) * quantum,
-											 -clamp, clamp)));
+			largest = std::max(largest, std::abs(std::clamp(
+											cellReading(L, owned, neighbours, skin.cell[i], skin.base[i]) * quantum,
+											-clamp, clamp)));
+		worst[std::size_t(part)] = largest;
 	});
 	return *std::max_element(worst.begin(), worst.end());
 }
@@ -1335,15 +1395,79 @@ bool holdsInside(const Lattice& L, const OwnedPoints& owned, const std::vector<s
 	return false;
 }
 
+/// One stored brick's samples, written to `out` (kSkinBrickSamples of them). Returns the largest |quantised - exact|
+/// distance among the touched points it copies (metres).
+double fillBlock(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign, int brick,
+				 double quantum, std::int16_t* out)
+{
+	double worst = 0.0;
+	const int id[3] = {brick % L.dims[0], (brick / L.dims[0]) % L.dims[1], brick / (L.dims[0] * L.dims[1])};
+	// The brick's samples come from the points it owns and, on its upper faces (a, b or c = B), from the points
+	// of the 7 bricks above it: their slots, or the quanta of a brick that is not near (or off the grid).
+	int slot[8], constant[8];
+	for (int n = 0; n < 8; ++n)
+	{
+		const int i = id[0] + (n & 1), j = id[1] + ((n >> 1) & 1), k = id[2] + (n >> 2);
+		const bool onGrid = i < L.dims[0] && j < L.dims[1] && k < L.dims[2];
+		slot[n] = onGrid ? owned.brickSlot[std::size_t(L.brickId(i, j, k))] : -1;
+		constant[n] = onGrid && brickSign[std::size_t(L.brickId(i, j, k))] < 0 ? -kMaxQuanta : kMaxQuanta;
+	}
+	// Row by row: a row (b, c) reads its first B points from one brick (n) and its last from the brick after it
+	// in x (n + 1).
+	auto copy = [&](int n, std::size_t p) {
+		if (slot[n] < 0)
+		{
+			*out++ = std::int16_t(constant[n]);
+			return;
+		}
+		p += std::size_t(slot[n]) * kOwned;
+		const int q = owned.quanta[p];
+		*out++ = std::int16_t(q);
+		if (owned.touched((long long)p))
+		{
+			const double exact = owned.sign[p] * std::sqrt(double(owned.best2[p]));
+			worst = std::max(worst, std::abs(q * quantum - exact));
+		}
+	};
+	for (int c = 0; c <= B; ++c)
+		for (int b = 0; b <= B; ++b)
+		{
+			const int n = 2 * (b == B) + 4 * (c == B);
+			const std::size_t row = std::size_t(B * (b % B + B * (c % B)));
+			for (int a = 0; a < B; ++a)
+				copy(n, row + std::size_t(a));
+			copy(n + 1, row);
+		}
+	return worst;
+}
+
+/// Marks as stored (beside the bricks the skin samples read) every near brick whose box meets the union grown by
+/// the skin offset and two voxels, or that holds a lattice point inside the skin. On `threads` threads: each slot
+/// decides its own brick.
+void storeBricksNearUnion(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign,
+						  const GrownUnion& grown, int threads, std::vector<char>& stored)
+{
+	const double halfDiagonal = 0.5 * std::sqrt(3.0) * B * L.h;
+	parallelRanges(int(owned.slotBrick.size()), threads, [&](int first, int end) {
+		for (int slot = first; slot < end; ++slot)
+		{
+			const int brick = owned.slotBrick[std::size_t(slot)];
+			const int i = brick % L.dims[0], j = (brick / L.dims[0]) % L.dims[1], k = brick / (L.dims[0] * L.dims[1]);
+			const Eigen::Vector3d centre = L.point((long long)i * B, (long long)j * B, (long long)k * B) +
+										   Eigen::Vector3d::Constant(0.5 * B * L.h);
+			if (!stored[std::size_t(brick)] &&
+				(grown.meets(centre, halfDiagonal) || holdsInside(L, owned, brickSign, brick)))
+				stored[std::size_t(brick)] = 1;
+		}
+	});
+}
+
 /// Step 5 and the layout: brick index, samples of the stored bricks, and the largest error at their band points.
 void gatherBricks(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign,
-				  const std::vector<char>& stored, SkinField& field)
+				  const std::vector<char>& stored, int threads, SkinField& field)
 {
 	field.brickIndex.assign(std::size_t(L.brickCount()), kFarOutside);
-	const double quantum = field.quantum();
-	field.samples.resize(std::size_t(std::count(stored.begin(), stored.end(), char(1))) * kSkinBrickSamples);
-	std::int16_t* out = field.samples.data();
-	int blocks = 0;
+	std::vector<int> blockBrick; // per block, its brick (blocks in brick order)
 	for (int brick = 0; brick < int(L.brickCount()); ++brick)
 	{
 		if (!stored[std::size_t(brick)])
@@ -1352,45 +1476,21 @@ void gatherBricks(const Lattice& L, const OwnedPoints& owned, const std::vector<
 			field.brickIndex[std::size_t(brick)] = far && brickSign[std::size_t(brick)] < 0 ? kFarInside : kFarOutside;
 			continue;
 		}
-		field.brickIndex[std::size_t(brick)] = blocks++;
-		const int id[3] = {brick % L.dims[0], (brick / L.dims[0]) % L.dims[1], brick / (L.dims[0] * L.dims[1])};
-		// The brick's samples come from the points it owns and, on its upper faces (a, b or c = B), from the points
-		// of the 7 bricks above it: their slots, or the quanta of a brick that is not near (or off the grid).
-		int slot[8], constant[8];
-		for (int n = 0; n < 8; ++n)
-		{
-			const int i = id[0] + (n & 1), j = id[1] + ((n >> 1) & 1), k = id[2] + (n >> 2);
-			const bool onGrid = i < L.dims[0] && j < L.dims[1] && k < L.dims[2];
-			slot[n] = onGrid ? owned.brickSlot[std::size_t(L.brickId(i, j, k))] : -1;
-			constant[n] = onGrid && brickSign[std::size_t(L.brickId(i, j, k))] < 0 ? -kMaxQuanta : kMaxQuanta;
-		}
-		// Row by row: a row (b, c) reads its first B points from one brick (n) and its last from the brick after it
-		// in x (n + 1).
-		auto copy = [&](int n, std::size_t p) {
-			if (slot[n] < 0)
-			{
-				*out++ = std::int16_t(constant[n]);
-				return;
-			}
-			p += std::size_t(slot[n]) * kOwned;
-			const int q = owned.quanta[p];
-			*out++ = std::int16_t(q);
-			if (owned.touched((long long)p))
-			{
-				const double exact = owned.sign[p] * std::sqrt(double(owned.best2[p]));
-				field.maxError = std::max(field.maxError, std::abs(q * quantum - exact));
-			}
-		};
-		for (int c = 0; c <= B; ++c)
-			for (int b = 0; b <= B; ++b)
-			{
-				const int n = 2 * (b == B) + 4 * (c == B);
-				const std::size_t row = std::size_t(B * (b % B + B * (c % B)));
-				for (int a = 0; a < B; ++a)
-					copy(n, row + std::size_t(a));
-				copy(n + 1, row);
-			}
+		field.brickIndex[std::size_t(brick)] = int(blockBrick.size());
+		blockBrick.push_back(brick);
 	}
+	field.samples.resize(blockBrick.size() * kSkinBrickSamples);
+	const int blocks = int(blockBrick.size());
+	std::vector<double> worst(std::size_t(std::max(1, std::min(threads, blocks))), 0.0);
+	parallelParts(blocks, threads, [&](int part, int first, int end) {
+		for (int block = first; block < end; ++block)
+			worst[std::size_t(part)] = std::max(
+				worst[std::size_t(part)],
+				fillBlock(L, owned, brickSign, blockBrick[std::size_t(block)], field.quantum(),
+						  field.samples.data() + std::size_t(block) * kSkinBrickSamples));
+	});
+	for (double w : worst)
+		field.maxError = std::max(field.maxError, w);
 }
 
 void checkMesh(const TriMesh& mesh)
@@ -1410,7 +1510,10 @@ std::vector<Eigen::Vector3d> skinSamplePoints(const TriMesh& mesh, double voxel)
 {
 	std::vector<Eigen::Vector3d> out;
 	out.reserve(skinSampleCount(mesh, voxel)); // ~20 per face at a 5 mm voxel: growing the vector would copy them
-	forEachSkinSample(mesh, voxel, [&](const Eigen::Vector3d& p) { out.push_back(p); });
+	for (int v = 0; v < mesh.vertexCount(); ++v)
+		out.push_back(mesh.V.row(v).transpose());
+	for (int f = 0; f < mesh.faceCount(); ++f)
+		forEachFaceSample(mesh, f, voxel, [&](const Eigen::Vector3d& p) { out.push_back(p); });
 	return out;
 }
 
@@ -1440,7 +1543,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	checkMesh(mesh);
 	const int threads = resolveThreads(options.threads);
 	const Lattice L = makeLattice(mesh, options);
-	const MeshTopology topo(mesh);
+	const MeshTopology topo(mesh, threads);
 	std::vector<int> planeOf;
 	const std::vector<PlaneTriangle> planes = planeTriangles(mesh, topo, planeOf);
 
@@ -1459,22 +1562,12 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	field.nx = L.dims[0], field.ny = L.dims[1], field.nz = L.dims[2];
 	quantise(owned, field.quantum(), threads);
 
-	const SkinCells skin(L, mesh, owned);
+	const SkinCells skin(L, mesh, owned, threads);
 	std::vector<char> stored(std::size_t(L.brickCount()), 0);
 	const BrickNeighbours neighbours(L, owned, brickSign);
 	field.loweredSamples = lowerSkinReadings(L, skin, owned, neighbours, threads, stored);
-	const double halfDiagonal = 0.5 * std::sqrt(3.0) * B * L.h;
-	const GrownUnion grown(ellipsoids, options.skinOffset + 2.0 * L.h);
-	for (int slot = 0; slot < int(owned.slotBrick.size()); ++slot)
-	{
-		const int brick = owned.slotBrick[std::size_t(slot)];
-		const int i = brick % L.dims[0], j = (brick / L.dims[0]) % L.dims[1], k = brick / (L.dims[0] * L.dims[1]);
-		const Eigen::Vector3d centre = L.point((long long)i * B, (long long)j * B, (long long)k * B) +
-									   Eigen::Vector3d::Constant(0.5 * B * L.h);
-		if (!stored[std::size_t(brick)] && (grown.meets(centre, halfDiagonal) || holdsInside(L, owned, brickSign, brick)))
-			stored[std::size_t(brick)] = 1;
-	}
-	gatherBricks(L, owned, brickSign, stored, field);
+	storeBricksNearUnion(L, owned, brickSign, GrownUnion(ellipsoids, options.skinOffset + 2.0 * L.h), threads, stored);
+	gatherBricks(L, owned, brickSign, stored, threads, field);
 	field.maxError =
 		std::max(field.maxError, largestSkinReading(L, skin, owned, neighbours, field.quantum(), field.clamp, threads));
 	return field;
