@@ -6,6 +6,7 @@
 #include "bodyfit/fitting/parallel.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -1300,14 +1301,21 @@ struct SkinCells
 	{
 		const int nv = mesh.vertexCount(), nf = mesh.faceCount();
 		std::vector<std::size_t> faceStart(std::size_t(nf) + 1, std::size_t(nv));
+		parallelRanges(nf, threads, [&](int first, int end) {
+			for (int f = first; f < end; ++f)
+				faceStart[std::size_t(f) + 1] = faceSampleCount(mesh, f, L.h);
+		});
 		for (int f = 0; f < nf; ++f)
-			faceStart[std::size_t(f) + 1] = faceStart[std::size_t(f)] + faceSampleCount(mesh, f, L.h);
+			faceStart[std::size_t(f) + 1] += faceStart[std::size_t(f)];
 		cell.resize(faceStart.back());
 		base.resize(faceStart.back());
 		std::vector<char> onGrid(faceStart.back(), 0);
+		std::atomic<bool> allOnGrid{true};
 		auto locate = [&](std::size_t i, const Eigen::Vector3d& p) {
 			if (locateCell(L.origin, L.h, L.dims, p, cell[i]))
 				base[i] = interiorCellBase(L, owned, cell[i]), onGrid[i] = 1;
+			else
+				allOnGrid.store(false, std::memory_order_relaxed);
 		};
 		// Parts of about as many samples each: item i < nv is vertex i, item nv + f is face f's samples.
 		const std::size_t total = faceStart.back();
@@ -1328,7 +1336,8 @@ struct SkinCells
 					forEachFaceSample(mesh, item - nv, L.h, [&](const Eigen::Vector3d& p) { locate(i++, p); });
 				}
 		});
-		keepOnGrid(onGrid);
+		if (!allOnGrid.load())
+			keepOnGrid(onGrid);
 		sortByLayer(L.dims[kSlabAxis]);
 	}
 
