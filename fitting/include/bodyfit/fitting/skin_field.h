@@ -68,9 +68,10 @@
 /// it through zero next to skin thinner than a voxel); points outside the grid and in kFarOutside bricks read +clamp,
 /// in kFarInside bricks -clamp. Not guaranteed: the 1 mm of issue 14 where the skin is thinner than a voxel (the
 /// measured errors are in tests/fitting/test_skin_field.cpp and README.md). Deterministic, the same bytes for any
-/// thread count (SkinFieldOptions::threads): the threads take slabs of whole brick layers in y; in steps 2-3 each
-/// writes only its slab's points, meeting the features in the same fixed order, and in step 4 the samples go by
-/// brick layer, the even layers in parallel, then the odd ones (a sample changes only its own layer's cells).
+/// thread count (SkinFieldOptions::threads): in step 2 the threads take slabs of lattice layers in y and in step 3
+/// of brick layers; each writes only its slab's points, meeting the features in the same fixed order; in step 4 the
+/// samples go by brick layer, the even layers in parallel, then the odd ones (a sample changes only its own layer's
+/// cells); everything else is per point, per brick or per sample, or sums in a fixed order.
 
 #include "bodyfit/fitting/ellipsoid.h"
 #include "bodyfit/fitting/types.h"
