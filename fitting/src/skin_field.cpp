@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <string>
 
@@ -20,6 +21,14 @@ namespace
 constexpr int B = kSkinBrickEdge;
 constexpr int kOwned = B * B * B;    ///< lattice points a brick owns: local (a, b, c) in [0, B)^3
 constexpr int kMaxQuanta = 32767;
+
+/// A length in metres as "5 mm" (3 significant digits), for the errors.
+std::string millimetres(double metres)
+{
+	char text[32];
+	std::snprintf(text, sizeof text, "%.3g mm", metres * 1e3);
+	return text;
+}
 
 /// Where a point falls in the grid: its brick, its cell in the brick, and the trilinear weights.
 struct CellLocation
@@ -381,6 +390,10 @@ OwnedPoints nearBricks(const Lattice& L, const std::vector<PlaneTriangle>& trian
 			owned.brickSlot[b] = int(owned.slotBrick.size());
 			owned.slotBrick.push_back(int(b));
 		}
+	if ((long long)owned.slotBrick.size() > kMaxNearSkinBricks)
+		throw InvalidInputError("bakeSkinField: " + std::to_string(owned.slotBrick.size()) +
+								" bricks lie near the skin, more than the limit of " + std::to_string(kMaxNearSkinBricks) +
+								" (far too much skin, or too large triangles, for a " + millimetres(L.h) + " voxel)");
 	owned.clamp2 = float(clamp * clamp);
 	owned.best2.assign(owned.slotBrick.size() * kOwned, owned.clamp2);
 	owned.sign.assign(owned.slotBrick.size() * kOwned, 0);
@@ -404,6 +417,10 @@ inline void measure(const PlaneTriangle& T, double s, double t, double w, long l
 	const Eigen::Vector3d& N = T.featureNormal[c.feature];
 	owned.sign[std::size_t(p)] = (s - c.cs) * N.x() + (t - c.ct) * N.y() + w * N.z() < 0.0 ? -1 : 1;
 }
+
+/// The half-spaces of a region that scan() uses: more (a vertex of valence > 32, an edge of more than 30 faces) are
+/// dropped, and the region only grows.
+constexpr int kMaxRegionPlanes = 32;
 
 /// A convex region, half-spaces n . p <= b inside a box, holding every point within clamp whose nearest point on the
 /// skin is one feature: the interior of a face, of an edge, or a vertex (the feature's characteristic region, over-
@@ -441,7 +458,6 @@ struct FeatureRegion
 void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, const LatticeSlab& slab, OwnedPoints& owned)
 {
 	constexpr double kSlack = 1e-9; // metres
-	constexpr int kMaxPlanes = 32;  // more (a vertex of valence > 32) are dropped: the region only grows
 	const int ra = R.axis, ua = (R.axis + 1) % 3, va = (R.axis + 2) % 3;
 	long long lo[3], hi[3], P[3];
 	latticeRange(L, R.lo, R.hi, 0.0, lo, hi);
@@ -452,10 +468,10 @@ void scan(const FeatureRegion& R, const PlaneTriangle& T, const Lattice& L, cons
 		return;
 	if (lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2])
 		return; // the box holds no lattice point of the slab (a narrow vertex cone, a thin edge wedge)
-	const int planes = std::min(int(R.n.size()), kMaxPlanes);
+	const int planes = std::min(int(R.n.size()), kMaxRegionPlanes);
 	// The planes sorted by kind: [0, upper) bound r above, [upper, lower) below, [lower, planes) do not depend on r,
 	// so that a row's interval is a branch-free min and max (both exact, so the order of the planes does not matter).
-	double c[kMaxPlanes], du[kMaxPlanes], dv[kMaxPlanes], inv[kMaxPlanes], atV[kMaxPlanes];
+	double c[kMaxRegionPlanes], du[kMaxRegionPlanes], dv[kMaxRegionPlanes], inv[kMaxRegionPlanes], atV[kMaxRegionPlanes];
 	int upper = 0, lower = 0;
 	// A row's bounds are exact to ~1e-15 m / |dr| lattice steps; with every |dr| >= kSteep that is < 1e-8 steps, far
 	// below kMissR (lattice steps), and the planes that do not depend on r are exact to far below kMissC (metres).
@@ -704,6 +720,13 @@ bool vertexRegion(const TriMesh& mesh, const MeshTopology& topo, const std::vect
 				R.next.push_back(mesh.F(g, (k + 1) % 3));
 				R.prev.push_back(mesh.F(g, (k + 2) % 3));
 			}
+	}
+	// Above kMaxRegionPlanes edges the scan keeps the first ones, whose cone holds the vertex's: its box, from their
+	// extreme rays (so that a vertex of valence 10,000 costs 32^3, not 10,000^3, steps).
+	if (R.n.size() > std::size_t(kMaxRegionPlanes))
+	{
+		const std::vector<Eigen::Vector3d> first(R.n.begin(), R.n.begin() + kMaxRegionPlanes);
+		return vertexConeBox(pv, first, clamp, R.rays, R.lo, R.hi);
 	}
 	// The pseudo-normal's cone bound first (about 9 in 10 vertices of a body); the extreme rays where it fails. The box
 	// only bounds the scan: the region is the edges' half-spaces either way.
@@ -1264,6 +1287,19 @@ std::size_t skinSampleCount(const TriMesh& mesh, double voxel)
 	return count;
 }
 
+/// \throws InvalidInputError when skinSamplePoints would give more than kMaxSkinSamples points (counted face by face,
+/// stopping at the limit).
+void checkSkinSampleCount(const TriMesh& mesh, double voxel)
+{
+	long long count = mesh.vertexCount();
+	for (int f = 0; f < mesh.faceCount() && count <= kMaxSkinSamples; ++f)
+		count += (long long)faceSampleCount(mesh, f, voxel);
+	if (count > kMaxSkinSamples)
+		throw InvalidInputError("bakeSkinField: the mesh needs more skin samples than the limit of " +
+								std::to_string(kMaxSkinSamples) + " at a " + millimetres(voxel) +
+								" voxel (far too many or too large triangles)");
+}
+
 /// Calls visit(p) for the faceSampleCount points face f adds to skinSamplePoints, in their order.
 template <class Visit>
 void forEachFaceSample(const TriMesh& mesh, int f, double voxel, Visit visit)
@@ -1615,6 +1651,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	checkMesh(mesh);
 	const int threads = resolveThreads(options.threads);
 	const Lattice L = makeLattice(mesh, options);
+	checkSkinSampleCount(mesh, L.h);
 	const MeshTopology topo(mesh, threads);
 	std::vector<int> planeOf;
 	const std::vector<PlaneTriangle> planes = planeTriangles(mesh, topo, planeOf);

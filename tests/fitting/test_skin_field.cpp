@@ -462,6 +462,52 @@ TEST_CASE("skin field: bad options and meshes are one-line errors", "[skin_field
 	CHECK_THROWS_WITH(bodyfit::bakeSkinField(millimetres, {}), Catch::Contains("metres"));
 }
 
+TEST_CASE("skin field: a mesh whose bake would take gigabytes is refused before it allocates them", "[skin_field]")
+{
+	// Within the grid's limit, but the bake's working memory would not be: refused in the counting, in well under a
+	// second, with a one-line error naming the limit.
+	auto refused = [](const TriMesh& mesh, const char* word) {
+		CAPTURE(word);
+		try
+		{
+			bodyfit::bakeSkinField(mesh, {});
+			FAIL("accepted");
+		}
+		catch (const bodyfit::InvalidInputError& e)
+		{
+			CHECK(std::string(e.what()).find(word) != std::string::npos);
+			CHECK(std::string(e.what()).find("limit") != std::string::npos);
+			CHECK(std::string(e.what()).find('\n') == std::string::npos);
+		}
+	};
+	SECTION("a 40 m ground plane: about 1e6 bricks within clamp of the skin (the limit is 262,144)")
+	{
+		TriMesh plane;
+		plane.V.resize(4, 3);
+		plane.V << -20, 0, -20, 20, 0, -20, 20, 0, 20, -20, 0, 20;
+		plane.F.resize(2, 3);
+		plane.F << 0, 2, 1, 0, 3, 2;
+		refused(plane, "bricks lie near the skin");
+	}
+	SECTION("a cone of 16,000 metre-long slivers: ~2,000 skin samples each, 3.4e7 in all (the limit is 1.7e7)")
+	{
+		const int n = 8000;
+		TriMesh cone;
+		cone.V.resize(n + 2, 3);
+		cone.V.row(0) << 0, 1, 0;
+		cone.V.row(1) << 0, 0, 0;
+		for (int i = 0; i < n; ++i)
+			cone.V.row(i + 2) << 0.3 * std::cos(2 * M_PI * i / n), 0.0, 0.3 * std::sin(2 * M_PI * i / n);
+		cone.F.resize(2 * n, 3);
+		for (int i = 0; i < n; ++i)
+		{
+			cone.F.row(2 * i) << 0, 2 + (i + 1) % n, 2 + i;
+			cone.F.row(2 * i + 1) << 1, 2 + i, 2 + (i + 1) % n;
+		}
+		refused(cone, "skin samples");
+	}
+}
+
 // ---------------------------------------------------------------------------------------------------------- file
 
 namespace

@@ -137,13 +137,20 @@ struct SkinField
 void validateSkinFieldOptions(const SkinFieldOptions& options);
 
 /// Bakes the field of `mesh` (body frame; closed, CCW = outward) for a fit with `ellipsoids` (steps 1-5 above).
-/// \throws InvalidInputError for bad options, a mesh without faces, non-finite coordinates, bad indices, or a grid
-/// that would exceed kMaxSkinFieldBricks (a mesh not in metres).
+/// \throws InvalidInputError for bad options, a mesh without faces, non-finite coordinates, bad indices, a grid that
+/// would exceed kMaxSkinFieldBricks (a mesh not in metres), or a bake whose working memory would exceed
+/// kMaxSkinSamples or kMaxNearSkinBricks (far too many or too large triangles for the voxel).
 SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellipsoids,
 						const SkinFieldOptions& options = {});
 
 /// Limit on nx*ny*nz (a 2 m body at the finest voxel, 0.5 mm, needs ~1.6e6; 1.6e7 index entries are 64 MB).
 constexpr long long kMaxSkinFieldBricks = 16LL * 1024 * 1024;
+/// Limit on the bake's skin samples (step 4), 56 bytes each while it runs: a 13k-vertex body needs ~0.26e6 at 5 mm
+/// and ~6e6 at 0.5 mm, a million-vertex body ~9e6 at 5 mm; a triangle longer than 64 voxels adds ~2,000.
+constexpr long long kMaxSkinSamples = 16LL * 1024 * 1024;
+/// Limit on the bricks within clamp of a triangle's box (step 1), 3.5 kB each while the bake runs (and up to 1.5 kB
+/// each in the field): a 2 m body needs ~2,500 at 5 mm and ~250,000 at 0.5 mm; a 40 m ground plane ~1e6.
+constexpr long long kMaxNearSkinBricks = 256LL * 1024;
 
 /// The field at p (metres, body frame): the reference the Bullet side must match. +clamp outside the grid.
 double sample(const SkinField& field, const Eigen::Vector3d& p);
