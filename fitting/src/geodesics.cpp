@@ -93,11 +93,20 @@ struct HalfEdges
 			for (int k = 0; k < 3; ++k)
 				edges[size_t(fill[size_t(mesh.F(f, k))]++)] = {mesh.F(f, (k + 1) % 3), mesh.F(f, (k + 2) % 3)};
 		}
+		indexLongLists();
 	}
 
 	/// Number of half-edges a -> b, and the opposite vertex of the last one found.
 	int find(int a, int b, int* opposite) const
 	{
+		if (const int first = sortedStart.empty() ? -1 : sortedStart[size_t(a)]; first >= 0)
+		{
+			const auto begin = sorted.begin() + first, end = begin + (offset[size_t(a) + 1] - offset[size_t(a)]);
+			const auto range = std::equal_range(begin, end, b, ByTo{});
+			if (range.first != range.second)
+				*opposite = edges[size_t((range.second - 1)->second)].opposite; // stable: the last in list order
+			return int(range.second - range.first);
+		}
 		int count = 0;
 		for (int i = offset[size_t(a)]; i < offset[size_t(a) + 1]; ++i)
 		{
@@ -108,6 +117,36 @@ struct HalfEdges
 			}
 		}
 		return count;
+	}
+
+private:
+	/// A vertex with more than kLongList half-edges (a fan's hub: a cone's apex, a disc's centre) is searched by
+	/// bisection in its half-edges sorted by `to`, so that each of its k neighbours' twin lookups costs log k, not k.
+	static constexpr int kLongList = 32;
+	std::vector<int> sortedStart;             ///< per vertex: its entries in `sorted`, or -1 (a short list)
+	std::vector<std::pair<int, int>> sorted;  ///< (to, half-edge index), stable-sorted by `to` per long vertex
+	struct ByTo
+	{
+		bool operator()(const std::pair<int, int>& e, int to) const { return e.first < to; }
+		bool operator()(int to, const std::pair<int, int>& e) const { return to < e.first; }
+		bool operator()(const std::pair<int, int>& x, const std::pair<int, int>& y) const { return x.first < y.first; }
+	};
+
+	void indexLongLists()
+	{
+		const int n = int(offset.size()) - 1;
+		for (int v = 0; v < n; ++v)
+		{
+			const int first = offset[size_t(v)], count = offset[size_t(v) + 1] - first;
+			if (count <= kLongList)
+				continue;
+			if (sortedStart.empty())
+				sortedStart.assign(size_t(n), -1);
+			sortedStart[size_t(v)] = int(sorted.size());
+			for (int i = first; i < first + count; ++i)
+				sorted.push_back({edges[size_t(i)].to, i});
+			std::stable_sort(sorted.end() - count, sorted.end(), ByTo{});
+		}
 	}
 };
 

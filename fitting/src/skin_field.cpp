@@ -205,22 +205,33 @@ struct MeshTopology
 	int edgeEnd(int f, int k) const { return edgeStart[std::size_t(f) * 3 + std::size_t(k) + 1]; }
 
 private:
-	/// edgeStart and onEdge: per face edge (a, b), the faces of a's fan that also hold b.
+	/// edgeStart and onEdge: per face edge (a, b), the faces of a's fan that also hold b (a face once per corner it
+	/// has at a). Both fans list their faces in increasing order, so the smaller one is searched (a vertex of valence
+	/// 50,000 would otherwise cost 50,000^2 steps).
 	void edgeFaceLists(const TriMesh& mesh)
 	{
 		const int nf = mesh.faceCount();
 		edgeStart.assign(std::size_t(nf) * 3 + 1, 0);
 		onEdge.clear();
 		onEdge.reserve(std::size_t(nf) * 6);
+		auto cornersAt = [&](int g, int v) { return int(mesh.F(g, 0) == v) + int(mesh.F(g, 1) == v) + int(mesh.F(g, 2) == v); };
 		for (int f = 0; f < nf; ++f)
 			for (int k = 0; k < 3; ++k)
 			{
 				const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3);
-				for (int s = start[std::size_t(a)]; s < start[std::size_t(a) + 1]; ++s)
+				const int fanA = start[std::size_t(a) + 1] - start[std::size_t(a)];
+				const int fanB = start[std::size_t(b) + 1] - start[std::size_t(b)];
+				const int searched = fanA <= fanB ? a : b, other = searched == a ? b : a;
+				int previous = -1; // a face is listed once per corner at `searched`, consecutively
+				for (int s = start[std::size_t(searched)]; s < start[std::size_t(searched) + 1]; ++s)
 				{
 					const int g = faces[std::size_t(s)];
-					if (mesh.F(g, 0) == b || mesh.F(g, 1) == b || mesh.F(g, 2) == b)
-						onEdge.push_back(g);
+					if (g == previous)
+						continue;
+					previous = g;
+					if (cornersAt(g, other) > 0)
+						for (int n = cornersAt(g, a); n > 0; --n)
+							onEdge.push_back(g);
 				}
 				edgeStart[std::size_t(f) * 3 + std::size_t(k) + 1] = int(onEdge.size());
 			}

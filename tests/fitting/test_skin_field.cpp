@@ -86,6 +86,25 @@ TriMesh thinCylinder(double r, double l)
 		48, 96);
 }
 
+/// A closed cone along y: apex at (0, height, 0), base centre at the origin, n rim vertices of radius r; the apex and
+/// the base centre are hubs of valence n (the scan keeps 32 half-spaces of a region).
+TriMesh hubCone(int n, double r, double height)
+{
+	TriMesh cone;
+	cone.V.resize(n + 2, 3);
+	cone.V.row(0) << 0, height, 0;
+	cone.V.row(1) << 0, 0, 0;
+	for (int i = 0; i < n; ++i)
+		cone.V.row(i + 2) << r * std::cos(2 * M_PI * i / n), 0.0, r * std::sin(2 * M_PI * i / n);
+	cone.F.resize(2 * n, 3);
+	for (int i = 0; i < n; ++i)
+	{
+		cone.F.row(2 * i) << 0, 2 + (i + 1) % n, 2 + i;
+		cone.F.row(2 * i + 1) << 1, 2 + i, 2 + (i + 1) % n;
+	}
+	return cone;
+}
+
 /// What the accuracy check measured over points on the surface offset along its normal by up to `band`.
 struct Accuracy
 {
@@ -299,6 +318,11 @@ TEST_CASE("skin field: exact distances at every band lattice point (brute force)
 		shape = bodyfit::loadTriMesh(bodyfit_test::assetPath("male_young.4508v.obj")).mesh;
 		every = 5;
 	}
+	SECTION("cone whose apex and base centre have 400 faces each")
+	{
+		shape = hubCone(400, 0.03, 0.05);
+		o.voxel = 0.002;
+	}
 	const SkinField field = bodyfit::bakeSkinField(shape, {}, o);
 	int checked = 0;
 	const double worst = worstBandMiss(shape, field, every, &checked);
@@ -491,20 +515,7 @@ TEST_CASE("skin field: a mesh whose bake would take gigabytes is refused before 
 	}
 	SECTION("a cone of 16,000 metre-long slivers: ~2,000 skin samples each, 3.4e7 in all (the limit is 1.7e7)")
 	{
-		const int n = 8000;
-		TriMesh cone;
-		cone.V.resize(n + 2, 3);
-		cone.V.row(0) << 0, 1, 0;
-		cone.V.row(1) << 0, 0, 0;
-		for (int i = 0; i < n; ++i)
-			cone.V.row(i + 2) << 0.3 * std::cos(2 * M_PI * i / n), 0.0, 0.3 * std::sin(2 * M_PI * i / n);
-		cone.F.resize(2 * n, 3);
-		for (int i = 0; i < n; ++i)
-		{
-			cone.F.row(2 * i) << 0, 2 + (i + 1) % n, 2 + i;
-			cone.F.row(2 * i + 1) << 1, 2 + i, 2 + (i + 1) % n;
-		}
-		refused(cone, "skin samples");
+		refused(hubCone(8000, 0.3, 1.0), "skin samples");
 	}
 }
 
