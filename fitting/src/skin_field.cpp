@@ -173,10 +173,11 @@ struct PlaneTriangle
 struct MeshTopology
 {
 	std::vector<int> start, faces; ///< faces of vertex v: faces[start[v] .. start[v+1])
-	/// The faces holding face f's edge k (corners k, k+1), in the order of the fan of corner k: onEdge[edgeStart[3 f +
-	/// k] .. edgeStart[3 f + k + 1]). Found once here: the bake needs them for the pseudo-normals and the edge regions.
-	std::vector<int> edgeStart, onEdge;
-	std::vector<Eigen::Vector3d> faceN, vertexN, edgeN;
+	/// The mesh's edges: edgeOf[3 f + k] is the edge of face f's corners k, k + 1 (-1 where they are the same vertex),
+	/// and edge e is held by the faces edgeFaces[edgeStart[e] .. edgeStart[e + 1]), in increasing order (two on a
+	/// closed manifold). Found once here: the bake needs them for the pseudo-normals and the edge regions.
+	std::vector<int> edgeOf, edgeStart, edgeFaces;
+	std::vector<Eigen::Vector3d> faceN, vertexN, edgeN; ///< edgeN per face edge, like edgeOf
 
 	MeshTopology(const TriMesh& mesh, int threads)
 	{
@@ -193,47 +194,75 @@ struct MeshTopology
 			for (int k = 0; k < 3; ++k)
 				faces[std::size_t(fill[std::size_t(mesh.F(f, k))]++)] = f;
 		normals(mesh, threads);
-		edgeFaceLists(mesh);
-		edgeN.assign(std::size_t(nf) * 3, Eigen::Vector3d::Zero());
-		for (std::size_t e = 0; e < std::size_t(nf) * 3; ++e)
+		edges(mesh);
+		// Each edge's normal sum once (in face order), shared by the face edges on it.
+		std::vector<Eigen::Vector3d> sum(edgeStart.size() - 1, Eigen::Vector3d::Zero());
+		for (std::size_t e = 0; e + 1 < edgeStart.size(); ++e)
 			for (int s = edgeStart[e]; s < edgeStart[e + 1]; ++s)
-				edgeN[e] += faceN[std::size_t(onEdge[std::size_t(s)])];
+				sum[e] += faceN[std::size_t(edgeFaces[std::size_t(s)])];
+		edgeN.assign(std::size_t(nf) * 3, Eigen::Vector3d::Zero());
+		for (std::size_t i = 0; i < edgeOf.size(); ++i)
+			if (edgeOf[i] >= 0)
+				edgeN[i] = sum[std::size_t(edgeOf[i])];
 	}
 
-	/// The faces holding face f's edge k: [first, end) of onEdge.
-	int edgeBegin(int f, int k) const { return edgeStart[std::size_t(f) * 3 + std::size_t(k)]; }
-	int edgeEnd(int f, int k) const { return edgeStart[std::size_t(f) * 3 + std::size_t(k) + 1]; }
+	/// The faces holding face f's edge k: [first, end) of edgeFaces.
+	int edgeBegin(int f, int k) const { return at(f, k) < 0 ? 0 : edgeStart[std::size_t(at(f, k))]; }
+	int edgeEnd(int f, int k) const { return at(f, k) < 0 ? 0 : edgeStart[std::size_t(at(f, k)) + 1]; }
 
 private:
-	/// edgeStart and onEdge: per face edge (a, b), the faces of a's fan that also hold b (a face once per corner it
-	/// has at a). Both fans list their faces in increasing order, so the smaller one is searched (a vertex of valence
-	/// 50,000 would otherwise cost 50,000^2 steps).
-	void edgeFaceLists(const TriMesh& mesh)
+	int at(int f, int k) const { return edgeOf[std::size_t(f) * 3 + std::size_t(k)]; }
+
+	/// edgeOf, edgeStart, edgeFaces. An edge is listed by the first face that holds it, from the fan of its end with
+	/// fewer faces (a fan lists its faces in increasing order; searching the larger one made a hub of valence 50,000
+	/// cost 50,000^2 steps), so each edge's list is made once (an edge held by 20,000 faces listed per face took
+	/// 20,000^2 entries).
+	void edges(const TriMesh& mesh)
 	{
 		const int nf = mesh.faceCount();
-		edgeStart.assign(std::size_t(nf) * 3 + 1, 0);
-		onEdge.clear();
-		onEdge.reserve(std::size_t(nf) * 6);
-		auto cornersAt = [&](int g, int v) { return int(mesh.F(g, 0) == v) + int(mesh.F(g, 1) == v) + int(mesh.F(g, 2) == v); };
+		edgeOf.assign(std::size_t(nf) * 3, -1);
+		edgeStart.assign(1, 0);
+		edgeFaces.clear();
+		edgeFaces.reserve(std::size_t(nf) * 3);
+		auto holds = [&](int g, int v) { return mesh.F(g, 0) == v || mesh.F(g, 1) == v || mesh.F(g, 2) == v; };
+		// The first of g's corners k whose edge (k, k + 1) joins a and b, either way round (one exists).
+		auto cornerOf = [&](int g, int a, int b) {
+			for (int k = 0; k < 3; ++k)
+			{
+				const int x = mesh.F(g, k), y = mesh.F(g, (k + 1) % 3);
+				if ((x == a && y == b) || (x == b && y == a))
+					return k;
+			}
+			return -1;
+		};
 		for (int f = 0; f < nf; ++f)
 			for (int k = 0; k < 3; ++k)
 			{
 				const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3);
+				if (a == b)
+					continue;
 				const int fanA = start[std::size_t(a) + 1] - start[std::size_t(a)];
 				const int fanB = start[std::size_t(b) + 1] - start[std::size_t(b)];
 				const int searched = fanA <= fanB ? a : b, other = searched == a ? b : a;
-				int previous = -1; // a face is listed once per corner at `searched`, consecutively
-				for (int s = start[std::size_t(searched)]; s < start[std::size_t(searched) + 1]; ++s)
+				const int first = start[std::size_t(searched)], end = start[std::size_t(searched) + 1];
+				int s = first;
+				while (!holds(faces[std::size_t(s)], other)) // ends at f or before: f holds both
+					++s;
+				const int g = faces[std::size_t(s)], kg = cornerOf(g, a, b);
+				if (g != f || kg != k)
 				{
-					const int g = faces[std::size_t(s)];
-					if (g == previous)
-						continue;
-					previous = g;
-					if (cornersAt(g, other) > 0)
-						for (int n = cornersAt(g, a); n > 0; --n)
-							onEdge.push_back(g);
+					edgeOf[std::size_t(f) * 3 + std::size_t(k)] = edgeOf[std::size_t(g) * 3 + std::size_t(kg)];
+					continue; // listed by an earlier face, or an earlier corner of this one
 				}
-				edgeStart[std::size_t(f) * 3 + std::size_t(k) + 1] = int(onEdge.size());
+				edgeOf[std::size_t(f) * 3 + std::size_t(k)] = int(edgeStart.size()) - 1;
+				for (int previous = -1; s < end; ++s) // a face is in a fan once per corner there, consecutively
+				{
+					const int h = faces[std::size_t(s)];
+					if (h != previous && holds(h, other))
+						edgeFaces.push_back(h);
+					previous = h;
+				}
+				edgeStart.push_back(int(edgeFaces.size()));
 			}
 	}
 
@@ -596,14 +625,15 @@ void edgeRegion(const TriMesh& mesh, const MeshTopology& topo, int a, int b, con
 	// the edge: its box is the edge's grown by clamp times the normals' extents, plus the bulge of the arc between
 	// the two normals beyond its chord (1 - cos of half the largest angle between them).
 	Eigen::Vector3d extent = Eigen::Vector3d::Zero(), sum = Eigen::Vector3d::Zero();
-	double minCos = 1.0;
+	double minCos = faces.size() > std::size_t(kMaxRegionPlanes) ? -1.0 : 1.0; // many faces: the full bulge, 1
 	for (int g : faces)
 	{
 		const Eigen::Vector3d& n = topo.faceN[std::size_t(g)];
 		extent = extent.cwiseMax(n.cwiseAbs());
 		sum += n;
-		for (int h : faces)
-			minCos = std::min(minCos, n.dot(topo.faceN[std::size_t(h)]));
+		if (faces.size() <= std::size_t(kMaxRegionPlanes))
+			for (int h : faces)
+				minCos = std::min(minCos, n.dot(topo.faceN[std::size_t(h)]));
 	}
 	const double bulge = 1.0 - std::sqrt(std::max(0.0, 0.5 * (1.0 + minCos)));
 	const Eigen::Vector3d across = clamp * (extent + Eigen::Vector3d::Constant(faces.size() >= 2 ? bulge : 1.0));
@@ -619,13 +649,17 @@ void edgeRegion(const TriMesh& mesh, const MeshTopology& topo, int a, int b, con
 /// The box around v of the cone {d : d . e <= 0 for every e in `edges`} within clamp: the cone is spanned by its
 /// extreme rays (cross products of two edges that meet every constraint), so it lies in the circular cone around
 /// their mean a with the half-angle t of the widest, where |d_i| <= clamp (|a_i| + sin t). False when the cone is
-/// {0} (a saddle: no point but v has v as its nearest point). A wide cone (or one holding a line) gets the ball's box.
+/// {0} (a saddle: no point but v has v as its nearest point). A wide cone (or one holding a line) gets the ball's box,
+/// and so does one without extreme rays whose edges are all parallel (a half-space or a plane: a boundary vertex of
+/// one face, whose other edge its fan does not list; taken for {0} before, which left the points beyond the rim of
+/// an open mesh unmeasured, reading +clamp at 8-10 mm).
 bool vertexConeBox(const Eigen::Vector3d& pv, const std::vector<Eigen::Vector3d>& edges, double clamp,
 				   std::vector<Eigen::Vector3d>& rays, Eigen::Vector3d& lo, Eigen::Vector3d& hi)
 {
 	constexpr double kTolerance = 1e-9;
 	Eigen::Vector3d sum = Eigen::Vector3d::Zero();
 	rays.clear();
+	bool crossing = false; // two edges that are not parallel
 	for (std::size_t i = 0; i < edges.size(); ++i)
 		for (std::size_t j = i + 1; j < edges.size(); ++j)
 		{
@@ -633,6 +667,7 @@ bool vertexConeBox(const Eigen::Vector3d& pv, const std::vector<Eigen::Vector3d>
 			const double length = r.norm();
 			if (!(length > 1e-12))
 				continue;
+			crossing = true;
 			// Both directions of the line at once: (-r) . e is exactly -(r . e) (rounding is symmetric in sign).
 			const Eigen::Vector3d ray = r / length; // what r.normalized() gives, without a second square root
 			bool plus = true, minus = true;
@@ -647,9 +682,14 @@ bool vertexConeBox(const Eigen::Vector3d& pv, const std::vector<Eigen::Vector3d>
 			if (minus)
 				rays.push_back(-ray), sum += -ray;
 		}
-	if (rays.empty())
-		return false;
 	Eigen::Vector3d extent = Eigen::Vector3d::Constant(clamp);
+	if (rays.empty())
+	{
+		if (crossing)
+			return false; // the cone is {0}: a pointed cone has rays, one holding a line has that line
+		lo = pv - extent, hi = pv + extent; // parallel edges (one face at a boundary vertex): a half-space or plane
+		return true;
+	}
 	if (sum.norm() > 0.5 * double(rays.size()))
 	{
 		const Eigen::Vector3d a = sum.normalized();
@@ -771,12 +811,18 @@ void exactDistancesInSlab(const TriMesh& mesh, const MeshTopology& topo, const s
 		for (int k = 0; k < 3; ++k)
 		{
 			const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3);
+			// Each edge once, from its first non-degenerate face (found before the faces are listed: an edge of a
+			// book of 20,000 pages has 20,000 faces).
+			int first = -1;
+			for (int s = topo.edgeBegin(f, k); s < topo.edgeEnd(f, k) && first < 0; ++s)
+				if (planeOf[std::size_t(topo.edgeFaces[std::size_t(s)])] >= 0)
+					first = topo.edgeFaces[std::size_t(s)];
+			if (first != f)
+				continue;
 			faces.clear(); // the non-degenerate faces on the edge
 			for (int s = topo.edgeBegin(f, k); s < topo.edgeEnd(f, k); ++s)
-				if (planeOf[std::size_t(topo.onEdge[std::size_t(s)])] >= 0)
-					faces.push_back(topo.onEdge[std::size_t(s)]);
-			if (faces.front() != f)
-				continue; // each edge once, from its first face
+				if (planeOf[std::size_t(topo.edgeFaces[std::size_t(s)])] >= 0)
+					faces.push_back(topo.edgeFaces[std::size_t(s)]);
 			edgeRegion(mesh, topo, a, b, faces, clamp, R);
 			scan(R, T, L, slab, owned);
 		}

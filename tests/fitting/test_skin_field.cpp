@@ -323,6 +323,21 @@ TEST_CASE("skin field: exact distances at every band lattice point (brute force)
 		shape = hubCone(400, 0.03, 0.05);
 		o.voxel = 0.002;
 	}
+	SECTION("book: 200 triangles sharing one edge (open: the check compares magnitudes; its rim vertices have one "
+			"face each, whose cone was taken for {0}, and the points beyond the rim read +clamp at 8-10 mm)")
+	{
+		const int pages = 200;
+		shape.V.resize(pages + 2, 3);
+		shape.V.row(0) << 0, 0, 0;
+		shape.V.row(1) << 0, 0.05, 0;
+		shape.F.resize(pages, 3);
+		for (int i = 0; i < pages; ++i)
+		{
+			shape.V.row(i + 2) << 0.03 * std::cos(2 * M_PI * i / pages), 0.025, 0.03 * std::sin(2 * M_PI * i / pages);
+			shape.F.row(i) << 0, 1, i + 2;
+		}
+		o.voxel = 0.002;
+	}
 	const SkinField field = bodyfit::bakeSkinField(shape, {}, o);
 	int checked = 0;
 	const double worst = worstBandMiss(shape, field, every, &checked);
