@@ -322,6 +322,7 @@ TEST_CASE("skin field: exact distances at every band lattice point (brute force)
 	{
 		shape = hubCone(400, 0.03, 0.05);
 		o.voxel = 0.002;
+		every = 4;
 	}
 	SECTION("book: 200 triangles sharing one edge (open: the check compares magnitudes; its rim vertices have one "
 			"face each, whose cone was taken for {0}, and the points beyond the rim read +clamp at 8-10 mm)")
