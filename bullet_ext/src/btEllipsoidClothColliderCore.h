@@ -274,7 +274,8 @@ private:
 	/// march through far bricks keeps its full far step, btSkinFieldGeometry::stepFrom). One that starts
 	/// between the offset and its level (the level rose since it was placed) starts from qb taken up to the level
 	/// along the gradient (true, qb moved), or is decided at the offset this substep where that fails.
-	bool raiseStart(btScalar& rise, btVector3& qb, const btVector3& xb);
+	/// `ends` holds the field at qb and at the path's end, and is brought up to date when qb moves.
+	bool raiseStart(btScalar& rise, btVector3& qb, btSkinPathEnds& ends);
 	/// A node that starts within the skin: Newton on the field from x, else the union push-out (counted).
 	/// \return the field at the node's final position.
 	btScalar pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb, const btVector3& center,

@@ -82,15 +82,16 @@ bool btSkinFieldGeometry::leavesSurface(const btVector3& q, const btVector3& x, 
 	return fx >= level && g.dot(x - q) >= btScalar(0);
 }
 
-void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btScalar level, btSkinPathHit& out) const
+void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, const btSkinPathEnds& ends, btScalar level,
+								btSkinPathHit& out) const
 {
 	out.m_outcome = btSkinPathHit::CLEAR;
 	out.m_t = btScalar(0);
 	out.m_point = x;
 	out.m_normal.setValue(0, 0, 0);
 	out.m_limited = false;
-	bool farQ, farX, far;
-	const btScalar fq = m_field->distance(q, farQ);
+	bool far;
+	const btScalar fq = ends.m_fq;
 	out.m_startValue = fq;
 	out.m_value = fq;
 	if (fq - level < -m_tolerance)
@@ -109,9 +110,9 @@ void btSkinFieldGeometry::march(const btVector3& q, const btVector3& x, btScalar
 	// far along the path and cannot pass the first crossing. First the cheap case: the clear balls around both ends
 	// cover the path.
 	btScalar g, gx;
-	btScalar f = fq, stepQ = stepFrom(fq, farQ, level, g);
-	const btScalar fx = m_field->distance(x, farX);
-	const btScalar stepX = stepFrom(fx, farX, level, gx);
+	btScalar f = fq, stepQ = stepFrom(fq, ends.m_farQ, level, g);
+	const btScalar fx = ends.m_fx;
+	const btScalar stepX = stepFrom(fx, ends.m_farX, level, gx);
 	out.m_value = fx;
 	if (stepQ >= btScalar(0) && stepQ + btMax(stepX, btScalar(0)) >= len)
 		return;
@@ -229,14 +230,14 @@ btVector3 btEllipsoidClothColliderCore::skinSurfaceVelocity(const btVector3& wor
 	return (worldPoint - m_groupPrevious[m_skinGroup] * bindPoint) / dt;
 }
 
-bool btEllipsoidClothColliderCore::raiseStart(btScalar& rise, btVector3& qb, const btVector3& xb)
+bool btEllipsoidClothColliderCore::raiseStart(btScalar& rise, btVector3& qb, btSkinPathEnds& ends)
 {
 	const btSkinFieldGeometry& geometry = skinGeometry();
 	const btScalar offset = geometry.offset();
-	const btScalar fq = geometry.field()->distance(qb);
+	const btScalar fq = ends.m_fq;
 	// A whole offset above its level at the start or the end of the substep: it has left the skin (or is leaving
 	// it), and its edges no longer hold it up.
-	if (fq > btScalar(2) * offset + rise || geometry.field()->distance(xb) > btScalar(2) * offset + rise)
+	if (fq > btScalar(2) * offset + rise || ends.m_fx > btScalar(2) * offset + rise)
 		rise = btScalar(0);
 	m_skinLevel = offset + rise;
 	if (!(fq < m_skinLevel - geometry.tolerance() && fq >= offset - geometry.tolerance()))
@@ -247,6 +248,7 @@ bool btEllipsoidClothColliderCore::raiseStart(btScalar& rise, btVector3& qb, con
 	if (geometry.pushOut(qb, m_skinLevel, raised, value))
 	{
 		qb = raised;
+		ends.m_fq = geometry.field()->distance(qb, ends.m_farQ);
 		return true;
 	}
 	m_skinLevel = offset; // no way up there (the gradient vanishes): decided at the skin offset this substep
@@ -263,15 +265,16 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 	// The node's level: the skin offset, raised where its edges sag into the skin (liftEdgesOffSkin; not on a bone's
 	// field, whose substeps never lift, nor once the lift is switched off).
 	btVector3 q = qStart;
+	btSkinPathEnds ends = geometry.ends(qb, xb);
 	if (btScalar* rise = raisedLevel(node))
 	{
-		if (raiseStart(*rise, qb, xb))
+		if (raiseStart(*rise, qb, ends))
 			q = geometry.toWorld() * qb;
 	}
 	else
 		m_skinLevel = geometry.offset();
 	btSkinPathHit hit;
-	geometry.march(qb, xb, m_skinLevel, hit);
+	geometry.march(qb, xb, ends, m_skinLevel, hit);
 	if (hit.m_outcome == btSkinPathHit::CLEAR)
 		return false; // the march verified field >= level at x (its cheap test and its last ball both contain x)
 	m_lastStats.m_skinMarchLimits += hit.m_limited ? 1 : 0;

@@ -31,6 +31,14 @@ struct btSkinPathHit
 	bool m_limited;     ///< the march ran out of steps: m_point is the last point known to be outside
 };
 
+/// The field at the two ends of a node's path (body frame), read once: the edge lift's level test and the march both
+/// need them. m_farQ / m_farX: the end lies off the grid or in a far brick (btSkinDistanceField::distance).
+struct btSkinPathEnds
+{
+	btScalar m_fq, m_fx;
+	bool m_farQ, m_farX;
+};
+
 /// The field for one substep with everything the tight response needs, in the body frame.
 class btSkinFieldGeometry
 {
@@ -60,8 +68,18 @@ public:
 
 	/// Every query below works on one node's level: the field value it rests at, offset() plus the rise its edges
 	/// asked (Config::m_liftEdges; btEllipsoidClothColliderCore::liftEdgesOffSkin), never below offset().
-	/// The path q -> x (body frame) against the level set field = level, by sphere tracing (see the .cpp).
-	void march(const btVector3& q, const btVector3& x, btScalar level, btSkinPathHit& out) const;
+	/// The field at q and x.
+	btSkinPathEnds ends(const btVector3& q, const btVector3& x) const
+	{
+		btSkinPathEnds e;
+		e.m_fq = m_field->distance(q, e.m_farQ);
+		e.m_fx = m_field->distance(x, e.m_farX);
+		return e;
+	}
+	/// The path q -> x (body frame) against the level set field = level, by sphere tracing (see the .cpp); `ends` is
+	/// ends(q, x).
+	void march(const btVector3& q, const btVector3& x, const btSkinPathEnds& ends, btScalar level,
+			   btSkinPathHit& out) const;
 	/// Newton steps on field = level along the gradient from p (body frame). \return true with the point at
 	/// field in [level + seam, level + seam + hit band] and its field value; false where the gradient vanishes or
 	/// it does not converge.
