@@ -177,7 +177,7 @@ struct MeshTopology
 	/// and edge e is held by the faces edgeFaces[edgeStart[e] .. edgeStart[e + 1]), in increasing order (two on a
 	/// closed manifold). Found once here: the bake needs them for the pseudo-normals and the edge regions.
 	std::vector<int> edgeOf, edgeStart, edgeFaces;
-	std::vector<Eigen::Vector3d> faceN, vertexN, edgeN; ///< edgeN per face edge, like edgeOf
+	std::vector<Eigen::Vector3d> faceN, vertexN, edgeN; ///< edgeN per edge: the sum of its faces' normals
 
 	MeshTopology(const TriMesh& mesh, int threads)
 	{
@@ -195,15 +195,16 @@ struct MeshTopology
 				faces[std::size_t(fill[std::size_t(mesh.F(f, k))]++)] = f;
 		normals(mesh, threads);
 		edges(mesh);
-		// Each edge's normal sum once (in face order), shared by the face edges on it.
-		std::vector<Eigen::Vector3d> sum(edgeStart.size() - 1, Eigen::Vector3d::Zero());
+		edgeN.assign(edgeStart.size() - 1, Eigen::Vector3d::Zero()); // in face order
 		for (std::size_t e = 0; e + 1 < edgeStart.size(); ++e)
 			for (int s = edgeStart[e]; s < edgeStart[e + 1]; ++s)
-				sum[e] += faceN[std::size_t(edgeFaces[std::size_t(s)])];
-		edgeN.assign(std::size_t(nf) * 3, Eigen::Vector3d::Zero());
-		for (std::size_t i = 0; i < edgeOf.size(); ++i)
-			if (edgeOf[i] >= 0)
-				edgeN[i] = sum[std::size_t(edgeOf[i])];
+				edgeN[e] += faceN[std::size_t(edgeFaces[std::size_t(s)])];
+	}
+
+	/// The pseudo-normal of face f's edge k (zero where its corners are the same vertex).
+	Eigen::Vector3d edgeNormal(int f, int k) const
+	{
+		return at(f, k) < 0 ? Eigen::Vector3d::Zero() : edgeN[std::size_t(at(f, k))];
 	}
 
 	/// The faces holding face f's edge k: [first, end) of edgeFaces.
@@ -322,7 +323,7 @@ std::vector<PlaneTriangle> planeTriangles(const TriMesh& mesh, const MeshTopolog
 		T.featureNormal[kFace] = Eigen::Vector3d(0, 0, 1);
 		for (int k = 0; k < 3; ++k)
 		{
-			T.featureNormal[kEdge0 + k] = local(topo.edgeN[std::size_t(f) * 3 + std::size_t(k)]);
+			T.featureNormal[kEdge0 + k] = local(topo.edgeNormal(f, k));
 			T.featureNormal[kVertex0 + k] = local(topo.vertexN[std::size_t(mesh.F(f, k))]);
 		}
 		T.boxMin = T.v0.cwiseMin(T.v0 + e0).cwiseMin(T.v0 + e1);
@@ -625,15 +626,15 @@ void edgeRegion(const TriMesh& mesh, const MeshTopology& topo, int a, int b, con
 	// the edge: its box is the edge's grown by clamp times the normals' extents, plus the bulge of the arc between
 	// the two normals beyond its chord (1 - cos of half the largest angle between them).
 	Eigen::Vector3d extent = Eigen::Vector3d::Zero(), sum = Eigen::Vector3d::Zero();
-	double minCos = faces.size() > std::size_t(kMaxRegionPlanes) ? -1.0 : 1.0; // many faces: the full bulge, 1
+	const bool pairwise = faces.size() <= std::size_t(kMaxRegionPlanes); // else the full bulge, 1
+	double minCos = pairwise ? 1.0 : -1.0;
 	for (int g : faces)
 	{
 		const Eigen::Vector3d& n = topo.faceN[std::size_t(g)];
 		extent = extent.cwiseMax(n.cwiseAbs());
 		sum += n;
-		if (faces.size() <= std::size_t(kMaxRegionPlanes))
-			for (int h : faces)
-				minCos = std::min(minCos, n.dot(topo.faceN[std::size_t(h)]));
+		for (std::size_t h = 0; pairwise && h < faces.size(); ++h)
+			minCos = std::min(minCos, n.dot(topo.faceN[std::size_t(faces[h])]));
 	}
 	const double bulge = 1.0 - std::sqrt(std::max(0.0, 0.5 * (1.0 + minCos)));
 	const Eigen::Vector3d across = clamp * (extent + Eigen::Vector3d::Constant(faces.size() >= 2 ? bulge : 1.0));
@@ -958,8 +959,7 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints&
 								q = (long long)next * kOwned + (p % kOwned) - (long long)(B - 1) * stride[axis];
 							if (q < 0 || owned.sign[std::size_t(q)] != -sp)
 								continue;
-							q = owned.touched(q) ? q : -1;
-							if (suspect(p, q))
+							if (owned.touched(q) && suspect(p, q))
 								pairs[std::size_t(part)].push_back(p), pairs[std::size_t(part)].push_back(q);
 						}
 					}
@@ -1344,17 +1344,23 @@ std::size_t skinSampleCount(const TriMesh& mesh, double voxel)
 	return count;
 }
 
-/// \throws InvalidInputError when skinSamplePoints would give more than kMaxSkinSamples points (counted face by face,
-/// stopping at the limit).
-void checkSkinSampleCount(const TriMesh& mesh, double voxel)
+/// Where each face's points start in skinSamplePoints (after the vertices), with the total at the end; counted on
+/// `threads` threads. \throws InvalidInputError when the total exceeds kMaxSkinSamples.
+std::vector<std::size_t> faceSampleStarts(const TriMesh& mesh, double voxel, int threads)
 {
-	long long count = mesh.vertexCount();
-	for (int f = 0; f < mesh.faceCount() && count <= kMaxSkinSamples; ++f)
-		count += (long long)faceSampleCount(mesh, f, voxel);
-	if (count > kMaxSkinSamples)
+	const int nf = mesh.faceCount();
+	std::vector<std::size_t> start(std::size_t(nf) + 1, std::size_t(mesh.vertexCount()));
+	parallelRanges(nf, threads, [&](int first, int end) {
+		for (int f = first; f < end; ++f)
+			start[std::size_t(f) + 1] = faceSampleCount(mesh, f, voxel);
+	});
+	for (int f = 0; f < nf; ++f)
+		start[std::size_t(f) + 1] += start[std::size_t(f)];
+	if ((long long)start.back() > kMaxSkinSamples)
 		throw InvalidInputError("bakeSkinField: the mesh needs more skin samples than the limit of " +
 								std::to_string(kMaxSkinSamples) + " at a " + millimetres(voxel) +
 								" voxel (far too many or too large triangles)");
+	return start;
 }
 
 /// Calls visit(p) for the faceSampleCount points face f adds to skinSamplePoints, in their order.
@@ -1389,18 +1395,12 @@ struct SkinCells
 	std::vector<int> layerStart;
 
 	/// The cells of skinSamplePoints(mesh, L.h), located as the points are made, on `threads` threads: each face's
-	/// points go to the slots after the vertices and the faces before it, so the order is that of skinSamplePoints
-	/// whatever the thread count.
-	SkinCells(const Lattice& L, const TriMesh& mesh, const OwnedPoints& owned, int threads)
+	/// points go to the slots faceStart (faceSampleStarts) gives it, so the order is that of skinSamplePoints whatever
+	/// the thread count.
+	SkinCells(const Lattice& L, const TriMesh& mesh, const OwnedPoints& owned, const std::vector<std::size_t>& faceStart,
+			  int threads)
 	{
 		const int nv = mesh.vertexCount(), nf = mesh.faceCount();
-		std::vector<std::size_t> faceStart(std::size_t(nf) + 1, std::size_t(nv));
-		parallelRanges(nf, threads, [&](int first, int end) {
-			for (int f = first; f < end; ++f)
-				faceStart[std::size_t(f) + 1] = faceSampleCount(mesh, f, L.h);
-		});
-		for (int f = 0; f < nf; ++f)
-			faceStart[std::size_t(f) + 1] += faceStart[std::size_t(f)];
 		cell.resize(faceStart.back());
 		base.resize(faceStart.back());
 		std::vector<char> onGrid(faceStart.back(), 0);
@@ -1708,7 +1708,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	checkMesh(mesh);
 	const int threads = resolveThreads(options.threads);
 	const Lattice L = makeLattice(mesh, options);
-	checkSkinSampleCount(mesh, L.h);
+	const std::vector<std::size_t> faceStart = faceSampleStarts(mesh, L.h, threads); // refuses too many samples
 	const MeshTopology topo(mesh, threads);
 	std::vector<int> planeOf;
 	const std::vector<PlaneTriangle> planes = planeTriangles(mesh, topo, planeOf);
@@ -1728,7 +1728,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	field.nx = L.dims[0], field.ny = L.dims[1], field.nz = L.dims[2];
 	quantise(owned, field.quantum(), threads);
 
-	const SkinCells skin(L, mesh, owned, threads);
+	const SkinCells skin(L, mesh, owned, faceStart, threads);
 	std::vector<char> stored(std::size_t(L.brickCount()), 0);
 	const BrickNeighbours neighbours(L, owned, brickSign);
 	field.loweredSamples = lowerSkinReadings(L, skin, owned, neighbours, threads, stored);
