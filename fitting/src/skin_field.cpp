@@ -8,7 +8,9 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <string>
 
@@ -442,7 +444,8 @@ OwnedPoints nearBricks(const Lattice& L, const std::vector<PlaneTriangle>& trian
 }
 
 /// Lowers the nearest distance found at owned point p to its distance to T when that is smaller, recording the sign
-/// from the pseudo-normal of T's nearest feature. (s, t, w): the point in T's plane frame.
+/// from the pseudo-normal of T's nearest feature. (s, t, w): the point in T's plane frame. A point's sign is nonzero
+/// exactly when it has been measured (touched()).
 inline void measure(const PlaneTriangle& T, double s, double t, double w, long long p, OwnedPoints& owned)
 {
 	if (p < 0)
@@ -454,7 +457,10 @@ inline void measure(const PlaneTriangle& T, double s, double t, double w, long l
 	const double d2 = c.d2 + w * w;
 	if (d2 >= double(best))
 		return;
-	best = float(d2);
+	const float rounded = float(d2);
+	if (rounded >= owned.clamp2)
+		return; // below the clamp in double, at it in float: not measured, as beyond it (the sign stays 0)
+	best = rounded;
 	const Eigen::Vector3d& N = T.featureNormal[c.feature];
 	owned.sign[std::size_t(p)] = (s - c.cs) * N.x() + (t - c.ct) * N.y() + w * N.z() < 0.0 ? -1 : 1;
 }
@@ -895,6 +901,83 @@ void latticeOf(const Lattice& L, const OwnedPoints& owned, long long p, long lon
 	P[2] = (long long)(brick / (L.dims[0] * L.dims[1])) * B + local / (B * B);
 }
 
+/// Eight signs (bytes of the sign array, in memory order) as one word.
+inline std::uint64_t signWord(const std::int8_t* first, std::size_t count = 8)
+{
+	std::uint64_t word = 0;
+	std::memcpy(&word, first, count);
+	return word;
+}
+
+/// Calls pair(i) for each i in [0, 8) where byte i of the sign words x and y holds opposite nonzero signs. As bytes,
+/// -1 ^ 1 == 0xFE and no other pair of signs in {-1, 0, 1} xors to it, so the word test below finds the bytes of x ^ y
+/// equal to 0xFE (a zero byte of x ^ y ^ 0xFE..FE), a superset of them at worst (the borrow of the zero-byte test can
+/// flag a byte above a true one), which the byte test confirms. Most words of a brick hold no such byte.
+template <class Pair>
+inline void forOppositeBytes(std::uint64_t x, std::uint64_t y, Pair pair)
+{
+	constexpr std::uint64_t kOnes = 0x0101010101010101ull, kHighs = 0x8080808080808080ull;
+	const std::uint64_t t = x ^ y ^ (kOnes * 0xFEu);
+	if (((t - kOnes) & ~t & kHighs) == 0)
+		return;
+	std::int8_t a[8], b[8];
+	std::memcpy(a, &x, 8);
+	std::memcpy(b, &y, 8);
+	for (int i = 0; i < 8; ++i)
+		if (std::int8_t(a[i] ^ b[i]) == std::int8_t(-2))
+			pair(i);
+}
+
+/// Calls pair(p, q) for each owned point p of `slot` whose +axis lattice neighbour q is owned and has the opposite
+/// nonzero sign: within the brick, and across its upper faces into the slots `above[axis]` (-1: none). A brick's
+/// points lie x fastest in rows of B = 8 bytes, so the signs of a row are one word and the +x neighbours of a row's
+/// first 7 points are the word read one byte later.
+template <class Pair>
+void forOppositeSignPairs(const std::vector<std::int8_t>& sign, int slot, const int above[3], Pair pair)
+{
+	static_assert(B == 8, "the sign rows are read as 8-byte words");
+	const long long base = (long long)slot * kOwned;
+	const std::int8_t* s = sign.data() + base;
+	for (int row = 0; row < B * B; ++row) // +x within the row; +y and +z to the next row and layer
+	{
+		const long long p = base + (long long)row * B;
+		const std::uint64_t word = signWord(s + row * B);
+		forOppositeBytes(word, signWord(s + row * B + 1, B - 1), [&](int i) { pair(p + i, p + i + 1); });
+		if (row % B < B - 1)
+			forOppositeBytes(word, signWord(s + (row + 1) * B), [&](int i) { pair(p + i, p + B + i); });
+		if (row < B * (B - 1))
+			forOppositeBytes(word, signWord(s + (row + B) * B), [&](int i) { pair(p + i, p + B * B + i); });
+	}
+	if (above[0] >= 0) // +x: local a = B - 1 against a = 0 of the brick above
+	{
+		const long long next = (long long)above[0] * kOwned;
+		for (int row = 0; row < B * B; ++row)
+		{
+			const long long p = base + (long long)row * B + (B - 1), q = next + (long long)row * B;
+			if (std::int8_t(sign[std::size_t(p)] ^ sign[std::size_t(q)]) == std::int8_t(-2))
+				pair(p, q);
+		}
+	}
+	if (above[1] >= 0) // +y: the last row of every layer against the first row of the brick above
+	{
+		const long long next = (long long)above[1] * kOwned;
+		for (int c = 0; c < B; ++c)
+		{
+			const long long p = base + (long long)(c * B + B - 1) * B, q = next + (long long)c * B * B;
+			forOppositeBytes(signWord(sign.data() + p), signWord(sign.data() + q), [&](int i) { pair(p + i, q + i); });
+		}
+	}
+	if (above[2] >= 0) // +z: the last layer against the first layer of the brick above
+	{
+		const long long next = (long long)above[2] * kOwned;
+		for (int b = 0; b < B; ++b)
+		{
+			const long long p = base + (long long)((B - 1) * B + b) * B, q = next + (long long)b * B;
+			forOppositeBytes(signWord(sign.data() + p), signWord(sign.data() + q), [&](int i) { pair(p + i, q + i); });
+		}
+	}
+}
+
 /// Step 3a. A distance field is 1-Lipschitz: two neighbouring exact points whose signed distances differ by more than
 /// the voxel have a wrong sign between them. The pseudo-normal sign fails where the mesh passes through itself (toes
 /// or fingers pressed into each other): there the ray-parity test of fitting/inside_test.h (inside the union of the
@@ -917,12 +1000,11 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints&
 			queued[std::size_t(q)] = 1, queue.push_back(q);
 	};
 	// The unsigned distance is 1-Lipschitz whatever the signs: only a pair of opposite signs can break the bound.
-	auto suspect = [&](long long p, long long q) {
-		return q >= 0 && owned.sign[std::size_t(p)] != owned.sign[std::size_t(q)] &&
-			   std::abs(signedDistance(p) - signedDistance(q)) > limit;
-	};
-	// The suspect pairs, found per slab of slots in parallel and queued in slot order. A point on a brick's upper face
-	// finds its +axis neighbour in the slot of the brick above (-1: not near, or off the grid).
+	// Straight after the exact distances a point has a nonzero sign exactly when it was measured (touched), so the
+	// pairs of opposite nonzero signs are the pairs of measured points with opposite signs.
+	auto suspect = [&](long long p, long long q) { return std::abs(signedDistance(p) - signedDistance(q)) > limit; };
+	// The suspect pairs, found per part of the slots in parallel and queued in slot order. A point on a brick's upper
+	// face finds its +axis neighbour in the slot of the brick above (-1: not near, or off the grid).
 	const int slots = int(owned.slotBrick.size());
 	std::vector<int> above(std::size_t(slots) * 3, -1);
 	for (int slot = 0; slot < slots; ++slot)
@@ -938,31 +1020,12 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints&
 	}
 	std::vector<std::vector<long long>> pairs(std::size_t(std::max(1, std::min(threads, slots))));
 	parallelParts(slots, threads, [&](int part, int first, int end) {
-		for (long long slot = first; slot < end; ++slot)
-			for (int c = 0; c < B; ++c)
-				for (int b = 0; b < B; ++b)
-					for (int a = 0; a < B; ++a)
-					{
-						const long long p = slot * kOwned + a + B * (b + B * c);
-						// A point that was never measured keeps sign 0, so opposite nonzero signs come first: most
-						// points are rejected on the signs alone, without reading their distances.
-						const std::int8_t sp = owned.sign[std::size_t(p)];
-						if (sp == 0 || !owned.touched(p))
-							continue;
-						const int local[3] = {a, b, c}, stride[3] = {1, B, B * B};
-						for (int axis = 0; axis < 3; ++axis)
-						{
-							long long q = -1; // the +axis neighbour: in the same brick, or at local 0 of the brick above
-							if (local[axis] < B - 1)
-								q = p + stride[axis];
-							else if (const int next = above[std::size_t(slot) * 3 + std::size_t(axis)]; next >= 0)
-								q = (long long)next * kOwned + (p % kOwned) - (long long)(B - 1) * stride[axis];
-							if (q < 0 || owned.sign[std::size_t(q)] != -sp)
-								continue;
-							if (owned.touched(q) && suspect(p, q))
-								pairs[std::size_t(part)].push_back(p), pairs[std::size_t(part)].push_back(q);
-						}
-					}
+		std::vector<long long>& found = pairs[std::size_t(part)];
+		for (int slot = first; slot < end; ++slot)
+			forOppositeSignPairs(owned.sign, slot, &above[std::size_t(slot) * 3], [&](long long p, long long q) {
+				if (suspect(p, q))
+					found.push_back(p), found.push_back(q);
+			});
 	});
 	for (const std::vector<long long>& partPairs : pairs)
 		for (long long p : partPairs)
