@@ -35,6 +35,9 @@ std::string millimetres(double metres)
 /// Where a point falls in the grid: its brick, its cell in the brick, and the trilinear weights.
 struct CellLocation
 {
+	/// Left unset: locateCell sets every member (a bake sizes a vector of 10^5-10^6 of them, filled on all threads).
+	CellLocation() {}
+
 	int brick[3];
 	int cell[3];   ///< in [0, B)
 	double frac[3]; ///< in [0, 1]
