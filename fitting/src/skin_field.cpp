@@ -12,7 +12,9 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <string>
+#include <utility>
 
 namespace bodyfit
 {
@@ -123,15 +125,45 @@ Lattice makeLattice(const TriMesh& mesh, const SkinFieldOptions& o)
 	return L;
 }
 
+/// An allocator that leaves the elements a vector is sized with unset (for the arithmetic types it holds here), so that
+/// the bake's arrays of a million points are written once, on all threads, where their pages are first touched,
+/// instead of zeroed on one thread first.
+template <class T>
+struct UnsetAllocator : std::allocator<T>
+{
+	template <class U>
+	struct rebind
+	{
+		using other = UnsetAllocator<U>;
+	};
+	UnsetAllocator() = default;
+	template <class U>
+	UnsetAllocator(const UnsetAllocator<U>&) noexcept
+	{
+	}
+	template <class U>
+	void construct(U* at) noexcept
+	{
+		::new (static_cast<void*>(at)) U;
+	}
+	template <class U, class... Args>
+	void construct(U* at, Args&&... args)
+	{
+		::new (static_cast<void*>(at)) U(std::forward<Args>(args)...);
+	}
+};
+template <class T>
+using PointArray = std::vector<T, UnsetAllocator<T>>;
+
 /// Per owned lattice point of the near bricks: the nearest squared distance found (clamp^2 = none within clamp), its
 /// sign (0 = not known yet), and later the stored value in quanta.
 struct OwnedPoints
 {
 	std::vector<int> brickSlot; ///< per brick: slot of a near brick, -1 for the others
 	std::vector<int> slotBrick; ///< per slot: its brick
-	std::vector<float> best2;
-	std::vector<std::int8_t> sign;
-	std::vector<std::int16_t> quanta;
+	PointArray<float> best2;
+	PointArray<std::int8_t> sign;
+	PointArray<std::int16_t> quanta;
 	float clamp2 = 0.0f;
 
 	bool touched(long long p) const { return best2[std::size_t(p)] < clamp2; }
@@ -165,6 +197,9 @@ enum Feature
 /// (x1, 0), (x2, y2) with x1 > 0, y2 > 0. featureNormal[f] is the pseudo-normal of feature f in (u, v, n) coordinates.
 struct PlaneTriangle
 {
+	/// Left unset (planeTriangles sets every member, on all threads).
+	PlaneTriangle() {}
+
 	Eigen::Vector3d v0, u, v, n;
 	double x1 = 0, x2 = 0, y2 = 0;
 	Eigen::Vector3d featureNormal[7];
@@ -198,8 +233,12 @@ struct MeshTopology
 		for (int f = 0; f < nf; ++f)
 			for (int k = 0; k < 3; ++k)
 				faces[std::size_t(fill[std::size_t(mesh.F(f, k))]++)] = f;
-		normals(mesh, threads);
-		edges(mesh);
+		// The normals and the edge lists need only the fans, and not each other: on two threads, side by side (the
+		// edge lists are a serial pass).
+		parallelRanges(2, std::min(threads, 2), [&](int first, int end) {
+			for (int job = first; job < end; ++job)
+				job == 0 ? edges(mesh) : normals(mesh, 1);
+		});
 		edgeN.assign(edgeStart.size() - 1, Eigen::Vector3d::Zero()); // in face order
 		for (std::size_t e = 0; e + 1 < edgeStart.size(); ++e)
 			for (int s = edgeStart[e]; s < edgeStart[e + 1]; ++s)
@@ -303,39 +342,43 @@ private:
 	}
 };
 
-/// The non-degenerate faces in their plane frames; planeOf[f] is face f's entry, -1 for a degenerate face.
-std::vector<PlaneTriangle> planeTriangles(const TriMesh& mesh, const MeshTopology& topo, std::vector<int>& planeOf)
+/// The non-degenerate faces in their plane frames; planeOf[f] is face f's entry, -1 for a degenerate face. On `threads`
+/// threads.
+std::vector<PlaneTriangle> planeTriangles(const TriMesh& mesh, const MeshTopology& topo, std::vector<int>& planeOf,
+											int threads)
 {
-	std::vector<PlaneTriangle> out;
-	out.reserve(std::size_t(mesh.faceCount()));
 	planeOf.assign(std::size_t(mesh.faceCount()), -1);
+	int count = 0;
 	for (int f = 0; f < mesh.faceCount(); ++f)
-	{
-		const Eigen::Vector3d& n = topo.faceN[std::size_t(f)];
-		if (n.isZero())
-			continue; // degenerate: its edges and corners belong to its neighbours too
-		PlaneTriangle T;
-		T.v0 = mesh.V.row(mesh.F(f, 0)).transpose();
-		const Eigen::Vector3d e0 = mesh.V.row(mesh.F(f, 1)).transpose() - T.v0;
-		const Eigen::Vector3d e1 = mesh.V.row(mesh.F(f, 2)).transpose() - T.v0;
-		T.n = n;
-		T.u = e0.normalized();
-		T.v = T.n.cross(T.u);
-		T.x1 = e0.norm();
-		T.x2 = e1.dot(T.u);
-		T.y2 = e1.dot(T.v);
-		auto local = [&](const Eigen::Vector3d& w) { return Eigen::Vector3d(w.dot(T.u), w.dot(T.v), w.dot(T.n)); };
-		T.featureNormal[kFace] = Eigen::Vector3d(0, 0, 1);
-		for (int k = 0; k < 3; ++k)
+		if (!topo.faceN[std::size_t(f)].isZero()) // degenerate: its edges and corners belong to its neighbours too
+			planeOf[std::size_t(f)] = count++;
+	std::vector<PlaneTriangle> out(static_cast<std::size_t>(count));
+	parallelRanges(mesh.faceCount(), threads, [&](int first, int end) {
+		for (int f = first; f < end; ++f)
 		{
-			T.featureNormal[kEdge0 + k] = local(topo.edgeNormal(f, k));
-			T.featureNormal[kVertex0 + k] = local(topo.vertexN[std::size_t(mesh.F(f, k))]);
+			if (planeOf[std::size_t(f)] < 0)
+				continue;
+			PlaneTriangle& T = out[std::size_t(planeOf[std::size_t(f)])];
+			T.v0 = mesh.V.row(mesh.F(f, 0)).transpose();
+			const Eigen::Vector3d e0 = mesh.V.row(mesh.F(f, 1)).transpose() - T.v0;
+			const Eigen::Vector3d e1 = mesh.V.row(mesh.F(f, 2)).transpose() - T.v0;
+			T.n = topo.faceN[std::size_t(f)];
+			T.u = e0.normalized();
+			T.v = T.n.cross(T.u);
+			T.x1 = e0.norm();
+			T.x2 = e1.dot(T.u);
+			T.y2 = e1.dot(T.v);
+			auto local = [&](const Eigen::Vector3d& w) { return Eigen::Vector3d(w.dot(T.u), w.dot(T.v), w.dot(T.n)); };
+			T.featureNormal[kFace] = Eigen::Vector3d(0, 0, 1);
+			for (int k = 0; k < 3; ++k)
+			{
+				T.featureNormal[kEdge0 + k] = local(topo.edgeNormal(f, k));
+				T.featureNormal[kVertex0 + k] = local(topo.vertexN[std::size_t(mesh.F(f, k))]);
+			}
+			T.boxMin = T.v0.cwiseMin(T.v0 + e0).cwiseMin(T.v0 + e1);
+			T.boxMax = T.v0.cwiseMax(T.v0 + e0).cwiseMax(T.v0 + e1);
 		}
-		T.boxMin = T.v0.cwiseMin(T.v0 + e0).cwiseMin(T.v0 + e1);
-		T.boxMax = T.v0.cwiseMax(T.v0 + e0).cwiseMax(T.v0 + e1);
-		planeOf[std::size_t(f)] = int(out.size());
-		out.push_back(T);
-	}
+	});
 	return out;
 }
 
@@ -416,8 +459,9 @@ struct LatticeSlab
 	}
 };
 
-/// Marks the bricks within `clamp` of a triangle's box as near and gives each a slot of owned points.
-OwnedPoints nearBricks(const Lattice& L, const std::vector<PlaneTriangle>& triangles, double clamp)
+/// Marks the bricks within `clamp` of a triangle's box as near and gives each a slot of owned points (set to "not
+/// measured" on `threads` threads).
+OwnedPoints nearBricks(const Lattice& L, const std::vector<PlaneTriangle>& triangles, double clamp, int threads)
 {
 	OwnedPoints owned;
 	owned.brickSlot.assign(std::size_t(L.brickCount()), -1);
@@ -441,8 +485,13 @@ OwnedPoints nearBricks(const Lattice& L, const std::vector<PlaneTriangle>& trian
 								" bricks lie near the skin, more than the limit of " + std::to_string(kMaxNearSkinBricks) +
 								" (far too much skin, or too large triangles, for a " + millimetres(L.h) + " voxel)");
 	owned.clamp2 = float(clamp * clamp);
-	owned.best2.assign(owned.slotBrick.size() * kOwned, owned.clamp2);
-	owned.sign.assign(owned.slotBrick.size() * kOwned, 0);
+	owned.best2.resize(owned.slotBrick.size() * kOwned);
+	owned.sign.resize(owned.slotBrick.size() * kOwned);
+	parallelRanges(int(owned.slotBrick.size()), threads, [&](int first, int end) {
+		const std::size_t from = std::size_t(first) * kOwned, to = std::size_t(end) * kOwned;
+		std::fill(owned.best2.begin() + std::ptrdiff_t(from), owned.best2.begin() + std::ptrdiff_t(to), owned.clamp2);
+		std::fill(owned.sign.begin() + std::ptrdiff_t(from), owned.sign.begin() + std::ptrdiff_t(to), std::int8_t(0));
+	});
 	return owned;
 }
 
@@ -936,7 +985,7 @@ inline void forOppositeBytes(std::uint64_t x, std::uint64_t y, Pair pair)
 /// points lie x fastest in rows of B = 8 bytes, so the signs of a row are one word and the +x neighbours of a row's
 /// first 7 points are the word read one byte later.
 template <class Pair>
-void forOppositeSignPairs(const std::vector<std::int8_t>& sign, int slot, const int above[3], Pair pair)
+void forOppositeSignPairs(const PointArray<std::int8_t>& sign, int slot, const int above[3], Pair pair)
 {
 	static_assert(B == 8, "the sign rows are read as 8-byte words");
 	const long long base = (long long)slot * kOwned;
@@ -1777,9 +1826,9 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	const std::vector<std::size_t> faceStart = faceSampleStarts(mesh, L.h, threads); // refuses too many samples
 	const MeshTopology topo(mesh, threads);
 	std::vector<int> planeOf;
-	const std::vector<PlaneTriangle> planes = planeTriangles(mesh, topo, planeOf);
+	const std::vector<PlaneTriangle> planes = planeTriangles(mesh, topo, planeOf, threads);
 
-	OwnedPoints owned = nearBricks(L, planes, options.clamp);
+	OwnedPoints owned = nearBricks(L, planes, options.clamp, threads);
 	exactDistances(mesh, topo, planes, planeOf, L, options.clamp, threads, owned);
 	const int repaired = repairSigns(mesh, L, threads, owned);
 	std::vector<std::int8_t> brickSign(std::size_t(L.brickCount()), 0);
