@@ -349,8 +349,8 @@ std::vector<PlaneTriangle> planeTriangles(const TriMesh& mesh, const MeshTopolog
 {
 	planeOf.assign(std::size_t(mesh.faceCount()), -1);
 	int count = 0;
-	for (int f = 0; f < mesh.faceCount(); ++f)
-		if (!topo.faceN[std::size_t(f)].isZero()) // degenerate: its edges and corners belong to its neighbours too
+	for (int f = 0; f < mesh.faceCount(); ++f) // none for a degenerate face: its edges and corners are its neighbours'
+		if (!topo.faceN[std::size_t(f)].isZero())
 			planeOf[std::size_t(f)] = count++;
 	std::vector<PlaneTriangle> out(static_cast<std::size_t>(count));
 	parallelRanges(mesh.faceCount(), threads, [&](int first, int end) {
