@@ -37,9 +37,6 @@ std::string millimetres(double metres)
 /// Where a point falls in the grid: its brick, its cell in the brick, and the trilinear weights.
 struct CellLocation
 {
-	/// Left unset: locateCell sets every member (a bake sizes a vector of 10^5-10^6 of them, filled on all threads).
-	CellLocation() {}
-
 	int brick[3];
 	int cell[3];   ///< in [0, B)
 	double frac[3]; ///< in [0, 1]
@@ -125,9 +122,9 @@ Lattice makeLattice(const TriMesh& mesh, const SkinFieldOptions& o)
 	return L;
 }
 
-/// An allocator that leaves the elements a vector is sized with unset (for the arithmetic types it holds here), so that
-/// the bake's arrays of a million points are written once, on all threads, where their pages are first touched,
-/// instead of zeroed on one thread first.
+/// An allocator that default-initialises the elements a vector is sized with (arithmetic types, CellLocation and the
+/// Eigen vectors of PlaneTriangle stay unset), so that the bake's large arrays are written once, on all threads, where
+/// their pages are first touched, instead of zeroed on one thread first.
 template <class T>
 struct UnsetAllocator : std::allocator<T>
 {
@@ -153,7 +150,7 @@ struct UnsetAllocator : std::allocator<T>
 	}
 };
 template <class T>
-using PointArray = std::vector<T, UnsetAllocator<T>>;
+using UnsetArray = std::vector<T, UnsetAllocator<T>>;
 
 /// Per owned lattice point of the near bricks: the nearest squared distance found (clamp^2 = none within clamp), its
 /// sign (0 = not known yet), and later the stored value in quanta.
@@ -161,9 +158,9 @@ struct OwnedPoints
 {
 	std::vector<int> brickSlot; ///< per brick: slot of a near brick, -1 for the others
 	std::vector<int> slotBrick; ///< per slot: its brick
-	PointArray<float> best2;
-	PointArray<std::int8_t> sign;
-	PointArray<std::int16_t> quanta;
+	UnsetArray<float> best2;
+	UnsetArray<std::int8_t> sign;
+	UnsetArray<std::int16_t> quanta;
 	float clamp2 = 0.0f;
 
 	bool touched(long long p) const { return best2[std::size_t(p)] < clamp2; }
@@ -197,9 +194,6 @@ enum Feature
 /// (x1, 0), (x2, y2) with x1 > 0, y2 > 0. featureNormal[f] is the pseudo-normal of feature f in (u, v, n) coordinates.
 struct PlaneTriangle
 {
-	/// Left unset (planeTriangles sets every member, on all threads).
-	PlaneTriangle() {}
-
 	Eigen::Vector3d v0, u, v, n;
 	double x1 = 0, x2 = 0, y2 = 0;
 	Eigen::Vector3d featureNormal[7];
@@ -344,7 +338,7 @@ private:
 
 /// The non-degenerate faces in their plane frames; planeOf[f] is face f's entry, -1 for a degenerate face. On `threads`
 /// threads.
-std::vector<PlaneTriangle> planeTriangles(const TriMesh& mesh, const MeshTopology& topo, std::vector<int>& planeOf,
+UnsetArray<PlaneTriangle> planeTriangles(const TriMesh& mesh, const MeshTopology& topo, std::vector<int>& planeOf,
 											int threads)
 {
 	planeOf.assign(std::size_t(mesh.faceCount()), -1);
@@ -352,7 +346,7 @@ std::vector<PlaneTriangle> planeTriangles(const TriMesh& mesh, const MeshTopolog
 	for (int f = 0; f < mesh.faceCount(); ++f) // none for a degenerate face: its edges and corners are its neighbours'
 		if (!topo.faceN[std::size_t(f)].isZero())
 			planeOf[std::size_t(f)] = count++;
-	std::vector<PlaneTriangle> out(static_cast<std::size_t>(count));
+	UnsetArray<PlaneTriangle> out(static_cast<std::size_t>(count));
 	parallelRanges(mesh.faceCount(), threads, [&](int first, int end) {
 		for (int f = first; f < end; ++f)
 		{
@@ -461,7 +455,7 @@ struct LatticeSlab
 
 /// Marks the bricks within `clamp` of a triangle's box as near and gives each a slot of owned points (set to "not
 /// measured" on `threads` threads).
-OwnedPoints nearBricks(const Lattice& L, const std::vector<PlaneTriangle>& triangles, double clamp, int threads)
+OwnedPoints nearBricks(const Lattice& L, const UnsetArray<PlaneTriangle>& triangles, double clamp, int threads)
 {
 	OwnedPoints owned;
 	owned.brickSlot.assign(std::size_t(L.brickCount()), -1);
@@ -851,7 +845,7 @@ bool vertexRegion(const TriMesh& mesh, const MeshTopology& topo, const std::vect
 /// and sign, by scanning each feature's region with a face that holds the feature (the face is at least as near as
 /// the feature, and no nearer than the skin). The features come in a fixed order (faces with their edges, then
 /// vertices), so a point meets the same measurements in the same order whatever the slabs.
-void exactDistancesInSlab(const TriMesh& mesh, const MeshTopology& topo, const std::vector<PlaneTriangle>& planes,
+void exactDistancesInSlab(const TriMesh& mesh, const MeshTopology& topo, const UnsetArray<PlaneTriangle>& planes,
 						  const std::vector<int>& planeOf, const Lattice& L, double clamp, const LatticeSlab& slab,
 						  OwnedPoints& owned)
 {
@@ -907,7 +901,7 @@ void exactDistancesInSlab(const TriMesh& mesh, const MeshTopology& topo, const s
 /// as much work: each triangle counts in the layer of its box's centre, by its area (the band's volume, which its
 /// region scans fill) plus kTriangleOverhead (setting up its face, edge and vertex regions), in whole square
 /// millimetres so that the cut is exact arithmetic.
-void exactDistances(const TriMesh& mesh, const MeshTopology& topo, const std::vector<PlaneTriangle>& planes,
+void exactDistances(const TriMesh& mesh, const MeshTopology& topo, const UnsetArray<PlaneTriangle>& planes,
 					const std::vector<int>& planeOf, const Lattice& L, double clamp, int threads, OwnedPoints& owned)
 {
 	// mm^2: set on the bundled bodies, whose two slabs then differ by 0.1-0.8 ms of 15-17 ms (1-2 ms by area alone,
@@ -953,6 +947,12 @@ void latticeOf(const Lattice& L, const OwnedPoints& owned, long long p, long lon
 	P[2] = (long long)(brick / (L.dims[0] * L.dims[1])) * B + local / (B * B);
 }
 
+/// Opposite nonzero signs: as bytes, -1 ^ 1 == 0xFE, and no other pair of signs in {-1, 0, 1} xors to it.
+inline bool oppositeSigns(std::int8_t a, std::int8_t b)
+{
+	return std::int8_t(a ^ b) == std::int8_t(-2);
+}
+
 /// Eight signs (bytes of the sign array, in memory order) as one word.
 inline std::uint64_t signWord(const std::int8_t* first, std::size_t count = 8)
 {
@@ -961,10 +961,10 @@ inline std::uint64_t signWord(const std::int8_t* first, std::size_t count = 8)
 	return word;
 }
 
-/// Calls pair(i) for each i in [0, 8) where byte i of the sign words x and y holds opposite nonzero signs. As bytes,
-/// -1 ^ 1 == 0xFE and no other pair of signs in {-1, 0, 1} xors to it, so the word test below finds the bytes of x ^ y
-/// equal to 0xFE (a zero byte of x ^ y ^ 0xFE..FE), a superset of them at worst (the borrow of the zero-byte test can
-/// flag a byte above a true one), which the byte test confirms. Most words of a brick hold no such byte.
+/// Calls pair(i) for each i in [0, 8) where byte i of the sign words x and y holds opposite nonzero signs
+/// (oppositeSigns). The word test finds the bytes of x ^ y equal to 0xFE (a zero byte of x ^ y ^ 0xFE..FE), a
+/// superset of them at worst (the borrow of the zero-byte test can flag a byte above a true one), which the byte test
+/// confirms. Most words of a brick hold no such byte.
 template <class Pair>
 inline void forOppositeBytes(std::uint64_t x, std::uint64_t y, Pair pair)
 {
@@ -976,7 +976,7 @@ inline void forOppositeBytes(std::uint64_t x, std::uint64_t y, Pair pair)
 	std::memcpy(a, &x, 8);
 	std::memcpy(b, &y, 8);
 	for (int i = 0; i < 8; ++i)
-		if (std::int8_t(a[i] ^ b[i]) == std::int8_t(-2))
+		if (oppositeSigns(a[i], b[i]))
 			pair(i);
 }
 
@@ -985,7 +985,7 @@ inline void forOppositeBytes(std::uint64_t x, std::uint64_t y, Pair pair)
 /// points lie x fastest in rows of B = 8 bytes, so the signs of a row are one word and the +x neighbours of a row's
 /// first 7 points are the word read one byte later.
 template <class Pair>
-void forOppositeSignPairs(const PointArray<std::int8_t>& sign, int slot, const int above[3], Pair pair)
+void forOppositeSignPairs(const UnsetArray<std::int8_t>& sign, int slot, const int above[3], Pair pair)
 {
 	static_assert(B == 8, "the sign rows are read as 8-byte words");
 	const long long base = (long long)slot * kOwned;
@@ -1006,7 +1006,7 @@ void forOppositeSignPairs(const PointArray<std::int8_t>& sign, int slot, const i
 		for (int row = 0; row < B * B; ++row)
 		{
 			const long long p = base + (long long)row * B + (B - 1), q = next + (long long)row * B;
-			if (std::int8_t(sign[std::size_t(p)] ^ sign[std::size_t(q)]) == std::int8_t(-2))
+			if (oppositeSigns(sign[std::size_t(p)], sign[std::size_t(q)]))
 				pair(p, q);
 		}
 	}
@@ -1504,7 +1504,7 @@ void forEachFaceSample(const TriMesh& mesh, int f, double voxel, Visit visit)
 /// there.
 struct SkinCells
 {
-	std::vector<CellLocation> cell;
+	UnsetArray<CellLocation> cell;
 	std::vector<long long> base; ///< per cell, its interiorCellBase (found once: both readings need it)
 	std::vector<int> order;      ///< cells by layer: layer j's are order[layerStart[j] .. layerStart[j + 1])
 	std::vector<int> layerStart;
@@ -1826,7 +1826,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	const std::vector<std::size_t> faceStart = faceSampleStarts(mesh, L.h, threads); // refuses too many samples
 	const MeshTopology topo(mesh, threads);
 	std::vector<int> planeOf;
-	const std::vector<PlaneTriangle> planes = planeTriangles(mesh, topo, planeOf, threads);
+	const UnsetArray<PlaneTriangle> planes = planeTriangles(mesh, topo, planeOf, threads);
 
 	OwnedPoints owned = nearBricks(L, planes, options.clamp, threads);
 	exactDistances(mesh, topo, planes, planeOf, L, options.clamp, threads, owned);
