@@ -193,6 +193,7 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_contactFlags(0),
 	  m_escapeHints(0),
 	  m_skinMeshHints(0),
+	  m_nodeReadings(0),
 	  m_nodeRise(0),
 	  m_skinLevel(0),
 	  m_contactNodeBase(0),
@@ -426,6 +427,25 @@ void btEllipsoidClothColliderCore::beginContactRecord(const btSoftBody* softBody
 	m_nodeRise = n > 0 && m_config.m_liftEdges && m_skinGeometry.field() ? &record.m_rise[0] : 0;
 	m_contactNodeBase = n > 0 ? &softBody->m_nodes[0] : 0;
 	m_contactRecord = &record;
+	beginReadings(record, n);
+}
+
+void btEllipsoidClothColliderCore::beginReadings(ContactRecord& record, int numNodes)
+{
+	m_nodeReadings = 0;
+	const btSkinDistanceField* field = activeSkinField();
+	if (!field || numNodes == 0)
+		return;
+	// A point no start can be (starts are finite): no reading there.
+	const btVector3 none(SIMD_INFINITY, SIMD_INFINITY, SIMD_INFINITY);
+	record.m_readings.resize(numNodes, none);
+	if (record.m_readingsField != field->getContentId())
+	{
+		for (int i = 0; i < numNodes; ++i)
+			record.m_readings[i] = none;
+		record.m_readingsField = field->getContentId();
+	}
+	m_nodeReadings = &record.m_readings[0];
 }
 
 void btEllipsoidClothColliderCore::dropStaleContactRecords()
@@ -488,6 +508,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 		m_escapeHints = 0;
 		m_skinMeshHints = 0;
 		m_nodeRise = 0;
+		m_nodeReadings = 0;
 		m_contactRecord = 0;
 		return;
 	}
@@ -542,25 +563,16 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 	m_escapeHints = 0;
 	m_skinMeshHints = 0;
 	m_nodeRise = 0;
+	m_nodeReadings = 0;
 	m_contactRecord = 0;
 	stats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
 	stats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
 }
 
-btScalar* btEllipsoidClothColliderCore::raisedLevel(const btSoftBody::Node& node)
+int btEllipsoidClothColliderCore::candidatesAtLevel(const btVector3& q, const btVector3& x, btScalar rise,
+													const Substep& substep)
 {
-	if (!m_nodeRise || m_skinGroup >= 0) // (m_nodeRise is null unless the lift is on with the static field)
-		return 0;
-	btScalar* rise = &m_nodeRise[&node - m_contactNodeBase];
-	return *rise > btScalar(0) ? rise : 0;
-}
-
-int btEllipsoidClothColliderCore::candidatesAtLevel(const btSoftBody::Node& node, const btVector3& q,
-													const btVector3& x, const Substep& substep)
-{
-	const btScalar* rise = raisedLevel(node);
-	return rise ? btEllipsoidWorldCache::PathQuery(m_current, substep.m_skin + *rise).candidates(q, x, substep.m_candidates)
-				: 0;
+	return btEllipsoidWorldCache::PathQuery(m_current, substep.m_skin + rise).candidates(q, x, substep.m_candidates);
 }
 
 void btEllipsoidClothColliderCore::collideSweptNodes(btSoftBody* softBody, const btVector3* startPositions,
@@ -601,8 +613,12 @@ BT_ELLIPSOID_ALWAYS_INLINE bool btEllipsoidClothColliderCore::collideNode(btSoft
 	const btVector3 x = node.m_x;
 	// 1. Broad phase: the ellipsoids the path grown by the skin can meet.
 	int nc = substep.m_query.candidates(q, x, substep.m_candidates);
-	if (nc == 0 && !(m_nodeRise && (nc = candidatesAtLevel(node, q, x, substep)) > 0))
-		return false;
+	if (nc == 0)
+	{
+		const btScalar* rise = raisedLevel(node);
+		if (!rise || (nc = candidatesAtLevel(q, x, *rise, substep)) == 0)
+			return false;
+	}
 	++m_lastStats.m_nodesTested;
 	if (m_skinGeometry.field())
 		return collideOnSkin(node, q, substep, zeta); // tight mode: the contact is decided on the skin field

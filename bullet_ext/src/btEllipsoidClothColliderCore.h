@@ -99,6 +99,17 @@ private:
 	/// One soft body's contact flags (getContactFlags), its nodes' escape hints (kept across substeps: the ray of the
 	/// escape test that left the union last time, btEllipsoidUnionPushOut::leaveEnclosedPocket) and whether the
 	/// current substep processed it.
+	/// A cloth edge as the edge lift sees it (ContactRecord::m_edges).
+	struct LiftEdge
+	{
+		/// Where the edge's midpoint was (world frame, the body still since) when liftEdgesOffSkin last read the field
+		/// there, and that reading's margin above the edges' clearance (the midpoint may move that over the field's
+		/// Lipschitz bound before the reading no longer proves it clear; <= 0: no reading to reuse).
+		btVector3 m_mid;
+		btScalar m_slack;
+		btScalar m_rest; ///< the link's rest length
+		int m_a, m_b;    ///< its nodes
+	};
 	struct ContactRecord
 	{
 		const btSoftBody* m_softBody;
@@ -108,34 +119,32 @@ private:
 		btAlignedObjectArray<int> m_skinMeshHints; ///< per node: its closest skin-mesh triangle last time, or -1
 		/// per node: how far above the skin offset its edges ask it to rest (metres, >= 0; Config::m_liftEdges)
 		btAlignedObjectArray<btScalar> m_rise;
-		/// The cloth's edges for liftEdgesOffSkin: per edge (a link that is not a bending link) its two nodes and its
-		/// link, listed again when the soft body's link or node array changes size or place.
-		btAlignedObjectArray<int> m_edgeEnds;
-		btAlignedObjectArray<int> m_edgeLinks;
+		/// Tight mode, per node: where the skin field was last read at the node's final position (body or bind frame,
+		/// the frame the field is in) and the reading in w: the next substep starts there, and when its start maps to
+		/// exactly that point the reading is reused (btSkinDistanceField::getContentId of m_readingsField).
+		btAlignedObjectArray<btVector3> m_readings;
+		unsigned m_readingsField;
+		/// The cloth's edges for liftEdgesOffSkin (links that are not bending links), in one array so that the lift
+		/// reads an edge's state in one place (it never touches the links): listed again when the soft body's link or
+		/// node array changes size or place, or its rest length scale changes. Link order does not matter
+		/// (btSoftBody::randomizeConstraints shuffles the links in place: the same edges).
+		btAlignedObjectArray<LiftEdge> m_edges;
 		btAlignedObjectArray<int> m_nodeEdgeStart; ///< per node, where its edges start in m_nodeEdges (one more entry)
 		btAlignedObjectArray<int> m_nodeEdges;     ///< the edges at each node, node after node
 		const void* m_edgeLinkData;
 		const void* m_edgeNodeData;
 		int m_edgeLinkCount;
 		int m_edgeNodeCount;
-		/// A listed edge's link no longer joins its two nodes (btSoftBody::randomizeConstraints shuffles the links in
-		/// place): list them again at the next call.
-		bool m_edgesStale;
-		/// Per edge, where its midpoint was (world frame, the body still since) when liftEdgesOffSkin last read the
-		/// field there, and that reading's margin above the edges' clearance (the midpoint may move that over the
-		/// field's Lipschitz bound before the reading no longer proves it clear; <= 0: no reading to reuse).
-		btAlignedObjectArray<btVector3> m_edgeMid;
-		btAlignedObjectArray<btScalar> m_edgeSlack;
-		int m_edgeRevision;      ///< the compound's analytic revision those readings were taken at
+		btScalar m_edgeRestScale; ///< the soft body's rest length scale when the rest lengths were copied
+		int m_edgeRevision;       ///< the compound's analytic revision the edges' readings were taken at
 		btScalar m_edgeClearance; ///< and the clearance they were measured against
 		ContactRecord()
-			: m_softBody(0), m_current(false), m_edgeLinkData(0), m_edgeNodeData(0), m_edgeLinkCount(-1),
-			  m_edgeNodeCount(-1), m_edgesStale(false), m_edgeRevision(-1), m_edgeClearance(0)
+			: m_softBody(0), m_current(false), m_readingsField(0), m_edgeLinkData(0), m_edgeNodeData(0), m_edgeLinkCount(-1),
+			  m_edgeNodeCount(-1), m_edgeRestScale(0), m_edgeRevision(-1), m_edgeClearance(0)
 		{
 		}
-		/// Lists the soft body's edges again if its links or nodes changed (size, place, or order: m_edgesStale); true
-		/// if it did.
-		bool listEdges(const btSoftBody& softBody);
+		/// Lists the soft body's edges again if its links or nodes changed (size, place, rest lengths); true if it did.
+		bool listEdges(btSoftBody& softBody);
 	};
 
 	btEllipsoidCompoundShape* m_ownedCompound;
@@ -172,6 +181,7 @@ private:
 	unsigned char* m_contactFlags;             ///< the flags collide() fills (0 outside collide())
 	unsigned char* m_escapeHints;              ///< that soft body's escape hints (0 outside collide())
 	int* m_skinMeshHints;                      ///< that soft body's skin-mesh hints (0 outside collide())
+	btVector3* m_nodeReadings;                 ///< that soft body's field readings (0 outside collide() and in ELLIPSOIDS)
 	btScalar* m_nodeRise;                      ///< that soft body's node rises (0 outside collide(), or when no level applies)
 	btScalar m_skinLevel;                      ///< collideOnSkin: the level of the node it decides
 	const btSoftBody::Node* m_contactNodeBase; ///< node 0 of that soft body
@@ -182,6 +192,9 @@ private:
 
 	/// The soft body's record, cleared and sized to its nodes, marked current; m_contactFlags points into it.
 	void beginContactRecord(const btSoftBody* softBody);
+	/// Tight mode: points m_nodeReadings at the record's readings, sized to the nodes; all dropped when the field's
+	/// contents changed since they were taken.
+	void beginReadings(ContactRecord& record, int numNodes);
 	/// Drops the records of soft bodies the substep did not process (removed from the world).
 	void dropStaleContactRecords();
 
@@ -264,11 +277,18 @@ private:
 	bool collideOnSkin(btSoftBody::Node& node, const btVector3& qStart, const Substep& substep, btScalar& zeta);
 	/// The node's rise when its level is raised and applies (Config::m_liftEdges on, the static field's response, not a
 	/// bone's), else 0: the one test collideOnSkin and candidatesAtLevel share.
-	btScalar* raisedLevel(const btSoftBody::Node& node);
-	/// The broad phase of a node whose level is raised (Config::m_liftEdges) and whose path grown by the skin offset
-	/// meets no ellipsoid: the path grown by its level instead (where the union hugs the skin, a node resting at its
-	/// level can stand beyond the offset's reach; left out, it fell and was raised in turns). 0 for other nodes.
-	int candidatesAtLevel(const btSoftBody::Node& node, const btVector3& q, const btVector3& x, const Substep& substep);
+	btScalar* raisedLevel(const btSoftBody::Node& node)
+	{
+		if (!m_nodeRise || m_skinGroup >= 0) // (m_nodeRise is null unless the lift is on with the static field)
+			return 0;
+		btScalar* rise = &m_nodeRise[&node - m_contactNodeBase];
+		return *rise > btScalar(0) ? rise : 0;
+	}
+	/// The broad phase of a node whose level is raised by `rise` (Config::m_liftEdges, raisedLevel) and whose path
+	/// grown by the skin offset meets no ellipsoid: the path grown by its level instead (where the union hugs the
+	/// skin, a node resting at its level can stand beyond the offset's reach; left out, it fell and was raised in
+	/// turns).
+	int candidatesAtLevel(const btVector3& q, const btVector3& x, btScalar rise, const Substep& substep);
 	/// collideOnSkin's level for a raised node (m_skinLevel: the skin offset plus `rise`) and where its path starts.
 	/// A node that starts or ends a whole offset above its level has left the skin: its rise goes back to 0 (so the
 	/// march through far bricks keeps its full far step, btSkinFieldGeometry::stepFrom). One that starts
@@ -276,10 +296,11 @@ private:
 	/// along the gradient (true, qb moved), or is decided at the offset this substep where that fails.
 	/// `ends` holds the field at qb and at the path's end, and is brought up to date when qb moves.
 	bool raiseStart(btScalar& rise, btVector3& qb, btSkinPathEnds& ends);
-	/// A node that starts within the skin: Newton on the field from x, else the union push-out (counted).
+	/// A node that starts within the skin: Newton on the field from x, else the union push-out (counted). `point` is x
+	/// in the field's frame on entry (the field reads fx there) and the node's final position on return.
 	/// \return the field at the node's final position.
-	btScalar pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb, const btVector3& center,
-					   const Substep& substep);
+	btScalar pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, btScalar fx, const btVector3& center,
+						   const Substep& substep, btVector3& point);
 	/// Config::m_liftEdges, after the node responses of a substep that did not sweep: every cloth edge at a node in
 	/// contact reads the field at its midpoint (or reuses an earlier reading that still proves it clear). An edge whose
 	/// middle lies below the lift clearance asks the level of its nodes in contact (the field value collideOnSkin
@@ -290,11 +311,10 @@ private:
 	void liftEdgesOffSkin(btSoftBody* softBody);
 	/// liftEdgesOffSkin's nodes whose edges are looked at (m_edgeActive): the nodes in contact this substep.
 	void listEdgeNodes(int numNodes);
-	/// One edge (link `link`, nodes ia, ib) of liftEdgesOffSkin: its midpoint read on the field unless the last
-	/// reading (lastMid, slack: the reading's margin above the clearance) still holds. Below the clearance each
-	/// end in contact asks its share of the rise (m_riseAsk); else each end notes the edge's least slack (m_riseSlack).
-	void liftEdge(btSoftBody* softBody, int link, int ia, int ib, btVector3& lastMid, btScalar& slack,
-				  btScalar clearance, btScalar lipschitz);
+	/// One edge of liftEdgesOffSkin: its midpoint read on the field unless the last reading still holds. Below the
+	/// clearance each end in contact asks its share of the rise (m_riseAsk); else each end notes the edge's least
+	/// slack (m_riseSlack).
+	void liftEdge(const btSoftBody::Node* nodes, LiftEdge& edge, btScalar clearance, btScalar lipschitz);
 	/// liftEdgesOffSkin's last step, per node in contact: its rise grows by its largest ask (up to maxRise), or
 	/// shrinks by half the slack its edges have beyond the clearance (never below 0).
 	void updateNodeRises(btScalar clearance, btScalar maxRise);
@@ -319,8 +339,14 @@ private:
 	bool collideOnBoneField(btSoftBody::Node& node, const btVector3& q, int nc, const Substep& substep);
 	/// respondVelocity with the field's normal: the velocity rule, the slide along the field, the cap, the reaction.
 	/// `value` (the field at the node) follows the slide.
+	/// `point` is the node's body-frame position (the field reads `value` there) and follows the slide too.
 	bool respondOnSkin(btSoftBody::Node& node, const btVector3& normal, const btVector3& surface, const btVector3& start,
-					   const btVector3& center, const Substep& substep, btScalar remaining, btScalar& value);
+					   const btVector3& center, const Substep& substep, btScalar remaining, btVector3& point,
+					   btScalar& value);
+	/// The field at the two ends of the node's path: the start's from the node's last reading when it is that exact
+	/// point, else looked up (skinEnds), and the reading kept for the next substep (keepReading).
+	btSkinPathEnds skinEnds(const btSoftBody::Node& node, const btVector3& qb, const btVector3& xb) const;
+	void keepReading(const btSoftBody::Node& node, const btVector3& point, btScalar value);
 
 	// Tight mode on a skinned body, the skin of the instant (btSkinMeshResponse.cpp).
 	/// Once per substep after prepareBoneFields: m_skinMesh is the compound's mesh when this substep sweeps in tight

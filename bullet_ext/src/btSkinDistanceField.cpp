@@ -5,6 +5,7 @@ bullet_ext/README.md, "Tight skin surface".
 
 #include "bodyfit/bullet_ext/btSkinDistanceField.h"
 
+#include <atomic>
 #include <cmath>
 #include <cstdlib>
 
@@ -30,6 +31,13 @@ inline int faceIndex(int axis, int side, int u, int v)
 	return latticeIndex(u, v, w);
 }
 
+/// A content id no field had before (getContentId); 2^32 set() calls before one repeats.
+unsigned nextContentId()
+{
+	static std::atomic<unsigned> counter(0);
+	return ++counter;
+}
+
 } // namespace
 
 btSkinDistanceField::btSkinDistanceField()
@@ -48,10 +56,12 @@ void btSkinDistanceField::clear()
 	m_invH = btScalar(1);
 	m_clamp = btScalar(m_layout.m_clamp); // an empty field reads far outside everywhere
 	m_quantum = btScalar(0);
+	m_gradientScale = btScalar(0);
 	m_lipschitz = btScalar(1);
 	m_seam = btScalar(0);
 	m_dims[0] = m_dims[1] = m_dims[2] = 0;
 	m_numStored = 0;
+	m_contentId = nextContentId();
 	m_valid = false;
 }
 
@@ -132,6 +142,7 @@ bool btSkinDistanceField::set(const btSkinFieldLayout& layout, const int* brickI
 		return false;
 	}
 	m_lipschitz = measureLipschitz();
+	m_contentId = nextContentId();
 	m_valid = true;
 	return true;
 }
@@ -148,7 +159,7 @@ void btSkinDistanceField::adopt(const btSkinFieldLayout& layout, const int* bric
 		m_brickIndex[i] = brickIndex[i];
 	m_samples.resize(int(sampleCount));
 	for (int i = 0; i < int(sampleCount); ++i)
-		m_samples[i] = samples[i];
+		m_samples[i] = samples[i] < -32767 ? short(-32767) : samples[i]; // -32768 reads as -clamp, like -32767
 	m_numStored = int(sampleCount / kBrickSamples);
 	m_origin.setValue(btScalar(layout.m_origin[0]), btScalar(layout.m_origin[1]), btScalar(layout.m_origin[2]));
 	m_limit.setValue(btScalar(m_dims[0] * kBrickEdge), btScalar(m_dims[1] * kBrickEdge),
@@ -157,6 +168,7 @@ void btSkinDistanceField::adopt(const btSkinFieldLayout& layout, const int* bric
 	m_invH = btScalar(1.0 / layout.m_voxelSize);
 	m_clamp = btScalar(layout.m_clamp);
 	m_quantum = btScalar(layout.m_clamp / 32767.0);
+	m_gradientScale = btScalar(layout.m_clamp / 32767.0 / layout.m_voxelSize);
 }
 
 int btSkinDistanceField::brickAt(int i, int j, int k) const
@@ -186,7 +198,7 @@ btScalar btSkinDistanceField::measureLipschitz() const
 							const int o1 = (axis + 1) % 3, o2 = (axis + 2) % 3;
 							const int base = latticeIndex(a, b, c) + ((corner & 1) ? step[o1] : 0) +
 											 ((corner & 2) ? step[o2] : 0);
-							const long long lo = btMax(int(s[base]), -32767), hi = btMax(int(s[base + step[axis]]), -32767);
+							const long long lo = s[base], hi = s[base + step[axis]];
 							const long long d = std::llabs(hi - lo);
 							m[axis] = d > m[axis] ? d : m[axis];
 						}
@@ -215,7 +227,7 @@ btScalar btSkinDistanceField::faceJump(int brick, int axis, int side) const
 	btScalar jump = btScalar(0);
 	for (int v = 0; v < kBrickSide; ++v)
 		for (int u = 0; u < kBrickSide; ++u)
-			jump = btMax(jump, btFabs(sample(s, faceIndex(axis, side, u, v)) - sample(n, faceIndex(axis, 1 - side, u, v))));
+			jump = btMax(jump, btFabs(quanta(s, faceIndex(axis, side, u, v)) - quanta(n, faceIndex(axis, 1 - side, u, v))) * m_quantum);
 	return jump;
 }
 

@@ -170,25 +170,43 @@ bool btSkinFieldGeometry::newton(const btVector3& p, btScalar f, const btVector3
 btVector3 btSkinFieldGeometry::slide(const btVector3& from, const btVector3& displacement, btScalar level,
 									 btScalar& value) const
 {
-	// A piece no longer than offset / L from a point at field >= level >= offset ends at field >= 0, outside the skin
-	// (the zero level encloses it); the push-out there follows the gradient, away from the skin, so no piece crosses
-	// the body.
+	// Pieces that cannot cross the field's zero level, each brought back to the level by Newton (whose step follows
+	// the gradient, away from the skin), so no piece crosses the body. A piece of length len from p to c is clear when
+	// its two ends' clear balls cover it: (f(p) - seam) + (f(c) - seam) >= L len (the field is L-Lipschitz and jumps by
+	// at most the seam between bricks). Each piece is first tried at 1.5 offset / L, which a slide along the surface
+	// (both ends near the level, level >= offset) passes; where it does not (the piece dips into a crease), the piece
+	// is retaken at the clear ball of p alone, (f(p) - seam) / L >= offset / L, clear by itself.
 	const btScalar len = displacement.length();
 	if (!(len > btScalar(0)))
 		return from;
 	const btScalar piece = btMax(m_offset * m_invLipschitz, btScalar(4) * m_hitBand);
 	const btScalar taken = btMin(len, piece * btScalar(kMaxSlidePieces));
-	const int pieces = btMax(1, int(std::ceil(taken / piece)));
-	const btVector3 step = displacement * (taken / len / btScalar(pieces));
+	const btVector3 direction = displacement / len;
 	btVector3 p = from;
-	for (int i = 0; i < pieces; ++i)
+	btScalar fp = value, done = btScalar(0);
+	for (int i = 0; i < kMaxSlidePieces; ++i)
 	{
-		btVector3 c = p + step, g;
-		btScalar f = m_field->distanceAndGradient(c, g);
+		const btScalar left = taken - done;
+		const btScalar clearP = btMax(fp - m_margin, btScalar(0));
+		btScalar step = btMin(left, btScalar(1.5) * piece);
+		btVector3 c = p + direction * step, g;
+		btScalar f = m_field->distanceAndGradientBelow(c, level + m_margin, g); // the slope only to come back up
+		// (A reading of +clamp bounds the distance by less, see begin(): m_farStep above the offset level.)
+		const btScalar clearC = (f >= m_field->getClamp() ? btMin(f, m_farStep + m_offset) : f) - m_margin;
+		if (clearP + clearC < step * m_field->getLipschitz())
+		{
+			step = btMin(left, btMax(clearP * m_invLipschitz, piece));
+			c = p + direction * step;
+			f = m_field->distanceAndGradientBelow(c, level + m_margin, g);
+		}
 		if (f - level - m_margin < btScalar(0) && !newton(c, f, g, level, c, f))
 			break;
 		p = c;
+		fp = f;
 		value = f;
+		if (step == left)
+			break;
+		done += step;
 	}
 	return p;
 }
@@ -265,7 +283,7 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 	// The node's level: the skin offset, raised where its edges sag into the skin (liftEdgesOffSkin; not on a bone's
 	// field, whose substeps never lift, nor once the lift is switched off).
 	btVector3 q = qStart;
-	btSkinPathEnds ends = geometry.ends(qb, xb);
+	btSkinPathEnds ends = skinEnds(node, qb, xb);
 	if (btScalar* rise = raisedLevel(node))
 	{
 		if (raiseStart(*rise, qb, ends))
@@ -276,12 +294,20 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 	btSkinPathHit hit;
 	geometry.march(qb, xb, ends, m_skinLevel, hit);
 	if (hit.m_outcome == btSkinPathHit::CLEAR)
+	{
+		keepReading(node, xb, ends.m_fx);
 		return false; // the march verified field >= level at x (its cheap test and its last ball both contain x)
+	}
 	m_lastStats.m_skinMarchLimits += hit.m_limited ? 1 : 0;
 	const btVector3& center = m_current[substep.m_candidates[0]].m_center; // for PAPER_EQ10
-	btScalar value = hit.m_value; // the field at the node's final position, tracked through the response
+	// The node's final position in the field's frame and the field there, tracked through the response.
+	btVector3 point = hit.m_point;
+	btScalar value = hit.m_value;
 	if (hit.m_outcome == btSkinPathHit::START_INSIDE)
-		value = pushOutOfSkin(node, q, xb, center, substep);
+	{
+		point = xb;
+		value = pushOutOfSkin(node, q, ends.m_fx, center, substep, point);
+	}
 	else
 	{
 		++m_lastStats.m_nodesCorrected;
@@ -291,9 +317,10 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 			n = (qb - xb).normalized(); // a flat spot of the field at the offset level: back along the path
 		const btVector3 normal = geometry.toWorld().getBasis() * n;
 		if (respondOnSkin(node, normal, node.m_x - normal * m_skinLevel, q, center, substep, btScalar(1) - hit.m_t,
-						  value))
+						  point, value))
 		{
 			node.m_x = q; // held by static friction: stays at its start, outside (the march found field(q) >= level)
+			point = qb;
 			value = hit.m_startValue;
 			// A start above the contact band (its level fell since, or links pulling hard into the skin stopped it
 			// far up its path) comes down along the normal to where it touches: held there, not hovering.
@@ -302,29 +329,61 @@ bool btEllipsoidClothColliderCore::collideOnSkin(btSoftBody::Node& node, const b
 			if (value > m_skinLevel + geometry.contactBand() && geometry.pushOut(qb, m_skinLevel, down, downValue))
 			{
 				node.m_x = geometry.toWorld() * down;
+				point = down;
 				value = downValue;
 			}
 		}
 	}
+	keepReading(node, point, value);
 	m_lastStats.m_minSkinField = btMin(m_lastStats.m_minSkinField, value);
 	return false;
 }
 
-btScalar btEllipsoidClothColliderCore::pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, const btVector3& xb,
-													 const btVector3& center, const Substep& substep)
+btSkinPathEnds btEllipsoidClothColliderCore::skinEnds(const btSoftBody::Node& node, const btVector3& qb,
+													  const btVector3& xb) const
+{
+	const btSkinDistanceField& field = *skinGeometry().field();
+	btSkinPathEnds ends;
+	ends.m_fx = field.distance(xb, ends.m_farX);
+	// Bullet starts a substep where the last one left the node (btSoftBody::predictMotion: q = x), so its start is
+	// mostly the point of its last reading: the same point of the same field reads the same.
+	const btVector3* reading = m_nodeReadings ? &m_nodeReadings[&node - m_contactNodeBase] : 0;
+	if (reading && reading->x() == qb.x() && reading->y() == qb.y() && reading->z() == qb.z())
+	{
+		ends.m_fq = reading->w();
+		// (A stored brick that reads exactly +clamp counts as far here: a shorter march step, never a longer one.)
+		ends.m_farQ = ends.m_fq >= field.getClamp();
+	}
+	else
+		ends.m_fq = field.distance(qb, ends.m_farQ);
+	return ends;
+}
+
+void btEllipsoidClothColliderCore::keepReading(const btSoftBody::Node& node, const btVector3& point, btScalar value)
+{
+	if (!m_nodeReadings)
+		return;
+	btVector3& reading = m_nodeReadings[&node - m_contactNodeBase];
+	reading = point;
+	reading.setW(value);
+}
+
+btScalar btEllipsoidClothColliderCore::pushOutOfSkin(btSoftBody::Node& node, const btVector3& q, btScalar fx,
+													 const btVector3& center, const Substep& substep, btVector3& point)
 {
 	const btSkinFieldGeometry& geometry = skinGeometry();
 	// The body moved into the node (or it started within the skin). If the solve already brought it out, keep it.
-	btScalar value = geometry.field()->distance(xb);
+	btScalar value = fx;
 	if (value >= m_skinLevel)
 		return value;
 	++m_lastStats.m_nodesPushedOut;
 	btVector3 out;
-	if (geometry.pushOut(xb, m_skinLevel, out, value))
+	if (geometry.pushOut(point, m_skinLevel, out, value))
 	{
 		node.m_x = geometry.toWorld() * out;
+		point = out;
 		const btVector3 normal = geometry.toWorld().getBasis() * geometry.normal(out);
-		respondOnSkin(node, normal, node.m_x - normal * m_skinLevel, q, center, substep, btScalar(0), value);
+		respondOnSkin(node, normal, node.m_x - normal * m_skinLevel, q, center, substep, btScalar(0), point, value);
 		return value;
 	}
 	// The gradient vanishes (deeper than the clamp, the field's extremum) or Newton did not converge: the union
@@ -337,13 +396,14 @@ btScalar btEllipsoidClothColliderCore::pushOutOfSkin(btSoftBody::Node& node, con
 		btScalar ignored = SIMD_INFINITY;
 		leavePocket(node, substep, ignored); // outside every ellipsoid already: a pocket the union encloses
 	}
-	return geometry.field()->distance(geometry.toBody() * node.m_x);
+	point = geometry.toBody() * node.m_x;
+	return geometry.field()->distance(point);
 }
 
 bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const btVector3& normal,
 												 const btVector3& surface, const btVector3& start,
 												 const btVector3& center, const Substep& substep, btScalar remaining,
-												 btScalar& value)
+												 btVector3& point, btScalar& value)
 {
 	btNodeContacts contacts;
 	contacts.add(normal);
@@ -358,54 +418,63 @@ bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const b
 		// The rest of the substep along the surface, with the new velocity.
 		const btSkinFieldGeometry& geometry = skinGeometry();
 		const btVector3 displacement = geometry.toBody().getBasis() * (vr * (remaining * substep.m_dt));
-		node.m_x = geometry.toWorld() * geometry.slide(geometry.toBody() * node.m_x, displacement, m_skinLevel, value);
+		point = geometry.slide(point, displacement, m_skinLevel, value);
+		node.m_x = geometry.toWorld() * point;
 	}
 	setContactVelocity(node, vr, normal, start, bodyVelocity, before, surface, substep.m_dt);
 	return stopped;
 }
 
-bool btEllipsoidClothColliderCore::ContactRecord::listEdges(const btSoftBody& softBody)
+bool btEllipsoidClothColliderCore::ContactRecord::listEdges(btSoftBody& softBody)
 {
 	const int numLinks = softBody.m_links.size(), numNodes = softBody.m_nodes.size();
 	const void* linkData = numLinks > 0 ? &softBody.m_links[0] : 0;
 	const void* nodeData = numNodes > 0 ? &softBody.m_nodes[0] : 0;
-	if (!m_edgesStale && numLinks == m_edgeLinkCount && numNodes == m_edgeNodeCount && linkData == m_edgeLinkData &&
-		nodeData == m_edgeNodeData)
+	const btScalar restScale = softBody.getRestLengthScale();
+	if (numLinks == m_edgeLinkCount && numNodes == m_edgeNodeCount && linkData == m_edgeLinkData &&
+		nodeData == m_edgeNodeData && restScale == m_edgeRestScale)
 		return false;
-	m_edgesStale = false;
 	m_edgeLinkCount = numLinks;
 	m_edgeNodeCount = numNodes;
 	m_edgeLinkData = linkData;
 	m_edgeNodeData = nodeData;
-	m_edgeEnds.resize(0);
-	m_edgeLinks.resize(0);
+	m_edgeRestScale = restScale;
+	m_edges.resize(0);
 	const btSoftBody::Node* base = static_cast<const btSoftBody::Node*>(nodeData);
 	for (int l = 0; l < numLinks; ++l)
 	{
 		const btSoftBody::Link& link = softBody.m_links[l];
 		if (link.m_bbending)
 			continue; // a spring between the far corners of two faces, not an edge of the cloth
-		m_edgeEnds.push_back(int(link.m_n[0] - base));
-		m_edgeEnds.push_back(int(link.m_n[1] - base));
-		m_edgeLinks.push_back(l);
+		LiftEdge edge;
+		edge.m_mid.setValue(0, 0, 0);
+		edge.m_slack = btScalar(0);
+		edge.m_rest = link.m_rl;
+		edge.m_a = int(link.m_n[0] - base);
+		edge.m_b = int(link.m_n[1] - base);
+		m_edges.push_back(edge);
 	}
-	m_edgeMid.resize(m_edgeLinks.size());
-	m_edgeSlack.resize(m_edgeLinks.size());
 	// The edges at each node (counting sort by node).
 	m_nodeEdgeStart.resize(numNodes + 1);
 	for (int i = 0; i <= numNodes; ++i)
 		m_nodeEdgeStart[i] = 0;
-	for (int k = 0; k < m_edgeEnds.size(); ++k)
-		++m_nodeEdgeStart[m_edgeEnds[k] + 1];
+	for (int e = 0; e < m_edges.size(); ++e)
+	{
+		++m_nodeEdgeStart[m_edges[e].m_a + 1];
+		++m_nodeEdgeStart[m_edges[e].m_b + 1];
+	}
 	for (int i = 0; i < numNodes; ++i)
 		m_nodeEdgeStart[i + 1] += m_nodeEdgeStart[i];
-	m_nodeEdges.resize(m_edgeEnds.size());
+	m_nodeEdges.resize(2 * m_edges.size());
 	btAlignedObjectArray<int> fill;
 	fill.resize(numNodes);
 	for (int i = 0; i < numNodes; ++i)
 		fill[i] = m_nodeEdgeStart[i];
-	for (int k = 0; k < m_edgeEnds.size(); ++k)
-		m_nodeEdges[fill[m_edgeEnds[k]]++] = k / 2;
+	for (int e = 0; e < m_edges.size(); ++e)
+	{
+		m_nodeEdges[fill[m_edges[e].m_a]++] = e;
+		m_nodeEdges[fill[m_edges[e].m_b]++] = e;
+	}
 	return true;
 }
 
@@ -434,21 +503,20 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
 	const btScalar maxRise = geometry.maxRise();
 	ContactRecord* record = m_contactRecord; // (collide() began it)
 	const bool relisted = record->listEdges(*softBody);
-	const int numEdges = record->m_edgeLinks.size();
+	const int numEdges = record->m_edges.size();
+	LiftEdge* edges = numEdges > 0 ? &record->m_edges[0] : 0;
 	if (relisted || m_moving || record->m_edgeRevision != m_compound->getAnalyticRevision() ||
 		record->m_edgeClearance != clearance)
 	{
 		// Other edges, another field, another clearance, or the body moved: no reading is reusable.
 		for (int e = 0; e < numEdges; ++e)
-			record->m_edgeSlack[e] = btScalar(0);
+			edges[e].m_slack = btScalar(0);
 		record->m_edgeRevision = m_compound->getAnalyticRevision();
 		record->m_edgeClearance = clearance;
 	}
-	const int* ends = numEdges > 0 ? &record->m_edgeEnds[0] : 0;
 	const int* edgeStart = &record->m_nodeEdgeStart[0];
 	const int* nodeEdges = numEdges > 0 ? &record->m_nodeEdges[0] : 0;
-	btVector3* lastMid = numEdges > 0 ? &record->m_edgeMid[0] : 0;
-	btScalar* slack = numEdges > 0 ? &record->m_edgeSlack[0] : 0;
+	const btSoftBody::Node* nodes = &softBody->m_nodes[0];
 	const btScalar lipschitz = field.getLipschitz();
 	m_riseAsk.resize(numNodes, btScalar(0));
 	m_riseSlack.resize(numNodes, SIMD_INFINITY);
@@ -458,11 +526,11 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
 		const int i = m_edgeActive[k];
 		for (int s = edgeStart[i]; s < edgeStart[i + 1]; ++s)
 		{
-			const int e = nodeEdges[s];
-			const int j = ends[2 * e] == i ? ends[2 * e + 1] : ends[2 * e];
+			LiftEdge& edge = edges[nodeEdges[s]];
+			const int j = edge.m_a == i ? edge.m_b : edge.m_a;
 			if (j < i && m_contactFlags[j])
 				continue; // looked at from j
-			liftEdge(softBody, record->m_edgeLinks[e], i, j, lastMid[e], slack[e], clearance, lipschitz);
+			liftEdge(nodes, edge, clearance, lipschitz);
 		}
 	}
 	updateNodeRises(clearance, maxRise);
@@ -510,23 +578,24 @@ void btEllipsoidClothColliderCore::updateNodeRises(btScalar clearance, btScalar 
 	}
 }
 
-void btEllipsoidClothColliderCore::liftEdge(btSoftBody* softBody, int link, int ia, int ib, btVector3& lastMid,
-											btScalar& slack, btScalar clearance, btScalar lipschitz)
+void btEllipsoidClothColliderCore::liftEdge(const btSoftBody::Node* nodes, LiftEdge& edge, btScalar clearance,
+											btScalar lipschitz)
 {
 	const btSkinFieldGeometry& geometry = m_skinGeometry;
 	const btSkinDistanceField& field = *geometry.field();
-	const btSoftBody::Node* base = &softBody->m_nodes[0];
+	const int ia = edge.m_a, ib = edge.m_b;
 	// The ends whose level can rise: in contact, movable.
-	const btScalar wa = m_contactFlags[ia] ? base[ia].m_im : btScalar(0);
-	const btScalar wb = m_contactFlags[ib] ? base[ib].m_im : btScalar(0);
+	const btScalar wa = m_contactFlags[ia] ? nodes[ia].m_im : btScalar(0);
+	const btScalar wb = m_contactFlags[ib] ? nodes[ib].m_im : btScalar(0);
 	if (!(wa + wb > btScalar(0)))
 		return;
-	const btVector3& xa = base[ia].m_x;
-	const btVector3& xb = base[ib].m_x;
+	const btVector3& xa = nodes[ia].m_x;
+	const btVector3& xb = nodes[ib].m_x;
 	const btVector3 mid = (xa + xb) * btScalar(0.5);
 	// The field is L-Lipschitz (up to its seam, which the slack keeps): a midpoint that read `slack` above the
 	// clearance and has since moved less than slack / L (the body still) still reads above it, by at least what is left.
-	const btScalar moved2 = slack > btScalar(0) ? (mid - lastMid).length2() * lipschitz * lipschitz : SIMD_INFINITY;
+	const btScalar slack = edge.m_slack;
+	const btScalar moved2 = slack > btScalar(0) ? (mid - edge.m_mid).length2() * lipschitz * lipschitz : SIMD_INFINITY;
 	if (moved2 < slack * slack)
 	{
 		if (m_nodeRise[ia] > btScalar(0) || m_nodeRise[ib] > btScalar(0))
@@ -539,28 +608,19 @@ void btEllipsoidClothColliderCore::liftEdge(btSoftBody* softBody, int link, int 
 	}
 	// An edge stretched past 1.5x its rest length spans something (a limb between nodes on both sides): a rise of
 	// its nodes cannot free it without carrying them far from the skin.
-	const btSoftBody::Link& edgeLink = softBody->m_links[link];
-	if (!((edgeLink.m_n[0] == &base[ia] && edgeLink.m_n[1] == &base[ib]) ||
-		  (edgeLink.m_n[0] == &base[ib] && edgeLink.m_n[1] == &base[ia])))
-	{
-		m_contactRecord->m_edgesStale = true; // the links were reordered since they were listed
-		return;
-	}
-	const btScalar rest = edgeLink.m_rl;
-	if ((xb - xa).length2() > btScalar(2.25) * rest * rest)
+	if ((xb - xa).length2() > btScalar(2.25) * edge.m_rest * edge.m_rest)
 		return;
 	const btVector3 midBody = geometry.toBody() * mid;
-	const btScalar fMid = field.distance(midBody);
-	lastMid = mid;
-	slack = fMid - clearance - geometry.margin();
-	if (fMid >= clearance)
+	btVector3 g;
+	const btScalar f = field.distanceAndGradientBelow(midBody, clearance, g); // the slope only to ask for a rise
+	edge.m_mid = mid;
+	edge.m_slack = f - clearance - geometry.margin();
+	if (f >= clearance)
 	{
-		m_riseSlack[ia] = btMin(m_riseSlack[ia], slack);
-		m_riseSlack[ib] = btMin(m_riseSlack[ib], slack);
+		m_riseSlack[ia] = btMin(m_riseSlack[ia], edge.m_slack);
+		m_riseSlack[ib] = btMin(m_riseSlack[ib], edge.m_slack);
 		return;
 	}
-	btVector3 g;
-	const btScalar f = field.distanceAndGradient(midBody, g);
 	const btScalar slope = g.length();
 	if (!(slope > btScalar(0.1)))
 		return;

@@ -31,8 +31,8 @@ struct btSkinPathHit
 	bool m_limited;     ///< the march ran out of steps: m_point is the last point known to be outside
 };
 
-/// The field at the two ends of a node's path (body frame), read once: the edge lift's level test and the march both
-/// need them. m_farQ / m_farX: the end lies off the grid or in a far brick (btSkinDistanceField::distance).
+/// The field at the two ends of a node's path (body frame), read once (btEllipsoidClothColliderCore::skinEnds): the
+/// edge lift's level test and the march both need them. m_farQ / m_farX: the end lies off the grid or in a far brick (btSkinDistanceField::distance).
 struct btSkinPathEnds
 {
 	btScalar m_fq, m_fx;
@@ -68,16 +68,8 @@ public:
 
 	/// Every query below works on one node's level: the field value it rests at, offset() plus the rise its edges
 	/// asked (Config::m_liftEdges; btEllipsoidClothColliderCore::liftEdgesOffSkin), never below offset().
-	/// The field at q and x.
-	btSkinPathEnds ends(const btVector3& q, const btVector3& x) const
-	{
-		btSkinPathEnds e;
-		e.m_fq = m_field->distance(q, e.m_farQ);
-		e.m_fx = m_field->distance(x, e.m_farX);
-		return e;
-	}
 	/// The path q -> x (body frame) against the level set field = level, by sphere tracing (see the .cpp); `ends` is
-	/// ends(q, x).
+	/// the field at q and x.
 	void march(const btVector3& q, const btVector3& x, const btSkinPathEnds& ends, btScalar level,
 			   btSkinPathHit& out) const;
 	/// Newton steps on field = level along the gradient from p (body frame). \return true with the point at

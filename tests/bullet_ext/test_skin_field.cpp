@@ -446,6 +446,46 @@ TEST_CASE("tight mode: switching the edge lift off brings raised nodes back to t
 	CHECK(after <= kSkin + 0.0005 + tol);
 }
 
+TEST_CASE("tight mode: a field whose contents change in place is read afresh, not from the nodes' last readings",
+		  "[bullet_ext][skinfield]")
+{
+	// The collider keeps each node's last field reading and reuses it when the next substep starts at that point;
+	// the field's content id ties the readings to the contents they were taken on.
+	std::unique_ptr<btEllipsoidCompoundShape> shape =
+		singleEllipsoid(btVector3(0, 0, 0), btMatrix3x3::getIdentity(), btVector3(0.115f, 0.115f, 0.115f));
+	std::unique_ptr<btSkinDistanceField> owned =
+		bakeField(sphereBody, Eigen::Vector3d::Constant(-0.14), Eigen::Vector3d::Constant(0.14));
+	REQUIRE(owned != nullptr);
+	btSkinDistanceField* field = owned.get();
+	REQUIRE(shape->setSkinField(owned.release(), true));
+	// The body grown by 4 mm: a node resting 2 mm above the first skin is 2 mm inside it (its level 4 mm below).
+	const double grown = 0.104;
+	const auto grownBody = [&](const Eigen::Vector3d& p) { return sphereSdf(p, Eigen::Vector3d::Zero(), grown); };
+	std::unique_ptr<btSkinDistanceField> bigger =
+		bakeField(grownBody, Eigen::Vector3d::Constant(-0.14), Eigen::Vector3d::Constant(0.14));
+	REQUIRE(bigger != nullptr);
+	const double tol = analyticTolerance(*bigger);
+	ClothScene scene(std::move(shape));
+	REQUIRE(scene.install() != nullptr);
+	btSoftBody* cloth = scene.addPatch(btVector3(0, btScalar(0.125), 0), btScalar(0.3), 21);
+	for (int step = 0; step < 90; ++step)
+		scene.step(btScalar(1.0 / 60));
+	int resting = 0;
+	for (int i = 0; i < cloth->m_nodes.size(); ++i)
+		resting += sphereBody(toE(cloth->m_nodes[i].m_x)) < 0.004 ? 1 : 0;
+	REQUIRE(resting >= 20);
+	const unsigned before = field->getContentId();
+	*field = *bigger; // the same object the compound holds, new contents
+	CHECK(field->getContentId() != before);
+	scene.step(btScalar(1.0 / 60));
+	// Every node is pushed out to the grown skin's offset in the first step (within the field's tolerance); with the
+	// old readings the resting nodes would have stayed where they were, 2 mm inside.
+	double deepest = 1e30;
+	for (int i = 0; i < cloth->m_nodes.size(); ++i)
+		deepest = std::min(deepest, grownBody(toE(cloth->m_nodes[i].m_x)));
+	CHECK(deepest >= kSkin - tol);
+}
+
 TEST_CASE("contact flags: set for the cloth resting on the sphere, not for the cloth hanging free", "[bullet_ext][skinfield]")
 {
 	std::unique_ptr<btEllipsoidCompoundShape> probe = sphereUnionWithField();

@@ -71,6 +71,9 @@ public:
 			 long long sampleCount, const char** error = 0);
 
 	bool isValid() const { return m_valid; }
+	/// Names this field's contents: a new number (process-wide, never reused) at every set() and clear(), kept by a
+	/// copy. A reading taken at a point stays valid while the id is the same (the collider keeps each node's last one).
+	unsigned getContentId() const { return m_contentId; }
 	const btSkinFieldLayout& getLayout() const { return m_layout; }
 	int getNumStoredBricks() const { return m_numStored; }
 	btScalar getClamp() const { return m_clamp; }
@@ -131,6 +134,24 @@ public:
 		return trilinear(s, t);
 	}
 
+	/// The field at p, and its gradient only where the field reads below `below` (else `gradient` is left as it is):
+	/// for callers that need the slope only to come back up to a level (one cell lookup either way).
+	btScalar distanceAndGradientBelow(const btVector3& p, btScalar below, btVector3& gradient) const
+	{
+		const short* s;
+		btVector3 t;
+		const int where = locate(p, s, t);
+		if (where != 0)
+		{
+			gradient.setValue(0, 0, 0);
+			return where == 1 ? m_clamp : -m_clamp;
+		}
+		const btScalar f = trilinear(s, t);
+		if (f < below)
+			gradient = trilinearGradient(s, t);
+		return f;
+	}
+
 	/// The normalised gradient of the interpolant at p, or (0, 0, 0) where it vanishes (below 1e-3 of a unit slope:
 	/// far bricks, clamped samples, the centre of a symmetric body).
 	btVector3 gradient(const btVector3& p) const
@@ -151,10 +172,12 @@ private:
 	btScalar m_invH;
 	btScalar m_clamp;
 	btScalar m_quantum;
+	btScalar m_gradientScale; ///< quantum / h: a difference of samples in quanta to a slope
 	btScalar m_lipschitz;
 	btScalar m_seam;
 	int m_dims[3];
 	int m_numStored;
+	unsigned m_contentId;
 	bool m_valid;
 
 	bool checkLayout(const btSkinFieldLayout& layout, long long brickIndexCount, long long sampleCount,
@@ -184,30 +207,28 @@ private:
 		return 0;
 	}
 
-	btScalar sample(const short* s, int offset) const
-	{
-		const btScalar v = btScalar(s[offset]) * m_quantum;
-		return v < -m_clamp ? -m_clamp : v; // -32768 is the only value beyond the clamp
-	}
+	/// A sample in quanta: set() stores -32768 (the only value beyond the clamp) as -32767, so every sample is within
+	/// +-clamp and the interpolants scale by the quantum once, at the end.
+	btScalar quanta(const short* s, int offset) const { return btScalar(s[offset]); }
 
 	btScalar trilinear(const short* s, const btVector3& t) const
 	{
 		const int dy = kBrickSide, dz = kBrickSide * kBrickSide;
-		const btScalar c00 = sample(s, 0) + (sample(s, 1) - sample(s, 0)) * t.x();
-		const btScalar c10 = sample(s, dy) + (sample(s, dy + 1) - sample(s, dy)) * t.x();
-		const btScalar c01 = sample(s, dz) + (sample(s, dz + 1) - sample(s, dz)) * t.x();
-		const btScalar c11 = sample(s, dz + dy) + (sample(s, dz + dy + 1) - sample(s, dz + dy)) * t.x();
+		const btScalar c00 = quanta(s, 0) + (quanta(s, 1) - quanta(s, 0)) * t.x();
+		const btScalar c10 = quanta(s, dy) + (quanta(s, dy + 1) - quanta(s, dy)) * t.x();
+		const btScalar c01 = quanta(s, dz) + (quanta(s, dz + 1) - quanta(s, dz)) * t.x();
+		const btScalar c11 = quanta(s, dz + dy) + (quanta(s, dz + dy + 1) - quanta(s, dz + dy)) * t.x();
 		const btScalar c0 = c00 + (c10 - c00) * t.y();
 		const btScalar c1 = c01 + (c11 - c01) * t.y();
-		return c0 + (c1 - c0) * t.z();
+		return (c0 + (c1 - c0) * t.z()) * m_quantum;
 	}
 
 	btVector3 trilinearGradient(const short* s, const btVector3& t) const
 	{
 		const int dy = kBrickSide, dz = kBrickSide * kBrickSide;
-		const btScalar v000 = sample(s, 0), v100 = sample(s, 1), v010 = sample(s, dy), v110 = sample(s, dy + 1);
-		const btScalar v001 = sample(s, dz), v101 = sample(s, dz + 1), v011 = sample(s, dz + dy),
-					   v111 = sample(s, dz + dy + 1);
+		const btScalar v000 = quanta(s, 0), v100 = quanta(s, 1), v010 = quanta(s, dy), v110 = quanta(s, dy + 1);
+		const btScalar v001 = quanta(s, dz), v101 = quanta(s, dz + 1), v011 = quanta(s, dz + dy),
+					   v111 = quanta(s, dz + dy + 1);
 		const btScalar ux = btScalar(1) - t.x(), uy = btScalar(1) - t.y(), uz = btScalar(1) - t.z();
 		const btScalar gx = uy * uz * (v100 - v000) + t.y() * uz * (v110 - v010) + uy * t.z() * (v101 - v001) +
 							t.y() * t.z() * (v111 - v011);
@@ -215,7 +236,7 @@ private:
 							t.x() * t.z() * (v111 - v101);
 		const btScalar gz = ux * uy * (v001 - v000) + t.x() * uy * (v101 - v100) + ux * t.y() * (v011 - v010) +
 							t.x() * t.y() * (v111 - v110);
-		return btVector3(gx, gy, gz) * m_invH;
+		return btVector3(gx, gy, gz) * m_gradientScale;
 	}
 };
 
