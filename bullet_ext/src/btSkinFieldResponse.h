@@ -32,7 +32,8 @@ struct btSkinPathHit
 };
 
 /// The field at the two ends of a node's path (body frame), read once (btEllipsoidClothColliderCore::skinEnds): the
-/// edge lift's level test and the march both need them. m_farQ / m_farX: the end lies off the grid or in a far brick (btSkinDistanceField::distance).
+/// edge lift's level test and the march both need them. m_farQ / m_farX: the end lies off the grid or in a far brick
+/// (btSkinDistanceField::distance).
 struct btSkinPathEnds
 {
 	btScalar m_fq, m_fx;

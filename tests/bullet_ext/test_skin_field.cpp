@@ -3,10 +3,12 @@
 // (tests/bullet_ext/skin_field_fixtures.h) inside bigger ellipsoid unions, as a fit's MVEEs enclose the real skin.
 #include "bullet_ext/cloth_test_scene.h"
 #include "bullet_ext/skin_field_fixtures.h"
+#include "src/btSkinFieldResponse.h" // the slide, asked directly
 
 #include <catch2/catch.hpp>
 
 #include <cstring>
+#include <random>
 #include <string>
 
 using namespace bodyfit_test;
@@ -484,6 +486,47 @@ TEST_CASE("tight mode: a field whose contents change in place is read afresh, no
 	for (int i = 0; i < cloth->m_nodes.size(); ++i)
 		deepest = std::min(deepest, grownBody(toE(cloth->m_nodes[i].m_x)));
 	CHECK(deepest >= kSkin - tol);
+}
+
+TEST_CASE("tight mode: a slide along the field stays on its side of a sheet thinner than its pieces", "[bullet_ext][skinfield]")
+{
+	// A sheet 0.5 mm thick across the whole grid (the field is |y| - 0.25 mm, slope 1), baked at 0.5 mm voxels. A slide
+	// piece is tried at 1.5 offset / L = 3 mm: straight down from the top level (2.25 mm) it would end 0.75 mm below
+	// the sheet's middle, outside the skin on the far side, where Newton would take it to the far level. The piece's
+	// clearance test (both ends' clear balls cover it, else the start's ball alone) keeps every slide on its side.
+	const Eigen::Vector3d half(1.0, 0.00025, 1.0);
+	const auto plate = [&](const Eigen::Vector3d& p) { return boxSdf(p, Eigen::Vector3d::Zero(), half); };
+	std::unique_ptr<btSkinDistanceField> field =
+		bakeField(plate, Eigen::Vector3d(-0.03, -0.006, -0.03), Eigen::Vector3d(0.03, 0.006, 0.03), 0.0005, 0.004);
+	REQUIRE(field != nullptr);
+	REQUIRE(field->getLipschitz() < btScalar(1.01));
+	const double tol = analyticTolerance(*field);
+	const btScalar offset = btScalar(kSkin);
+	btSkinFieldGeometry geometry;
+	geometry.begin(field.get(), offset, btTransform::getIdentity());
+	std::mt19937 rng(11);
+	std::uniform_real_distribution<double> u(-1.0, 1.0);
+	int moved = 0;
+	for (int k = 0; k < 500; ++k)
+	{
+		// A start on the top level within 5 mm of the grid's middle, and a displacement of 1-15 mm pointing into the
+		// sheet at any angle (the slide stays inside the grid).
+		const btVector3 above(btScalar(0.005 * u(rng)), btScalar(half.y() + kSkin + 0.0005), btScalar(0.005 * u(rng)));
+		btVector3 start;
+		btScalar value;
+		REQUIRE(geometry.pushOut(above, offset, start, value));
+		btVector3 d(btScalar(u(rng)), btScalar(-2.0 * std::abs(u(rng)) - 0.05), btScalar(u(rng)));
+		d *= btScalar(0.001 + 0.007 * (u(rng) + 1.0)) / d.length();
+		const btVector3 end = geometry.slide(start, d, offset, value);
+		moved += (end - start).length() > btScalar(1e-4) ? 1 : 0;
+		const Eigen::Vector3d e = toE(end);
+		INFO("slide " << k << " from y " << start.y() << " by (" << d.x() << ", " << d.y() << ", " << d.z() << ")");
+		CHECK(e.y() > 0.0);                       // on the top side
+		CHECK(plate(e) >= double(offset) - tol); // at the level or above it
+		// The value the slide hands back is the field where it left the node (the collider keeps it as a reading).
+		CHECK(value == field->distance(end));
+	}
+	CHECK(moved > 400); // the slides went somewhere (along the surface; the rest met a flat spot and stopped)
 }
 
 TEST_CASE("contact flags: set for the cloth resting on the sphere, not for the cloth hanging free", "[bullet_ext][skinfield]")
