@@ -227,7 +227,8 @@ btScalar btSkinDistanceField::faceJump(int brick, int axis, int side) const
 	btScalar jump = btScalar(0);
 	for (int v = 0; v < kBrickSide; ++v)
 		for (int u = 0; u < kBrickSide; ++u)
-			jump = btMax(jump, btFabs(quanta(s, faceIndex(axis, side, u, v)) - quanta(n, faceIndex(axis, 1 - side, u, v))) * m_quantum);
+			jump = btMax(jump, btFabs(quanta(s, faceIndex(axis, side, u, v)) - quanta(n, faceIndex(axis, 1 - side, u, v))) *
+								   m_quantum);
 	return jump;
 }
 

@@ -191,8 +191,10 @@ btVector3 btSkinFieldGeometry::slide(const btVector3& from, const btVector3& dis
 		btScalar step = btMin(left, btScalar(1.5) * piece);
 		btVector3 c = p + direction * step, g;
 		btScalar f = m_field->distanceAndGradientBelow(c, level + m_margin, g); // the slope only to come back up
-		// (A reading of +clamp bounds the distance by less, see begin(): m_farStep above the offset level.)
-		const btScalar clearC = (f >= m_field->getClamp() ? btMin(f, m_farStep + m_offset) : f) - m_margin;
+		// c's clearance to the zero level, as the march takes it (a reading of +clamp bounds the distance by less; not
+		// knowing whether c lies in a far brick, it is taken as one: the smaller bound).
+		btScalar clearC;
+		stepFrom(f, f >= m_field->getClamp(), btScalar(0), clearC);
 		if (clearP + clearC < step * m_field->getLipschitz())
 		{
 			step = btMin(left, btMax(clearP * m_invLipschitz, piece));
