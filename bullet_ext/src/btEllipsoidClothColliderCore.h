@@ -189,6 +189,7 @@ private:
 	btAlignedObjectArray<btScalar> m_riseAsk;   ///< liftEdgesOffSkin: per node, the largest rise its edges ask (0: none)
 	btAlignedObjectArray<btScalar> m_riseSlack; ///< ... and its edges' least slack above the clearance (per call)
 	btAlignedObjectArray<int> m_edgeActive;     ///< liftEdgesOffSkin: the nodes in contact this substep
+	btAlignedObjectArray<int> m_liftNear;       ///< ... and the other ends of their edges that it asked to rise
 
 	/// The soft body's record, cleared and sized to its nodes, marked current; m_contactFlags points into it.
 	void beginContactRecord(const btSoftBody* softBody);
@@ -312,12 +313,21 @@ private:
 	/// liftEdgesOffSkin's nodes whose edges are looked at (m_edgeActive): the nodes in contact this substep.
 	void listEdgeNodes(int numNodes);
 	/// One edge of liftEdgesOffSkin: its midpoint read on the field unless the last reading still holds. Below the
-	/// clearance each end in contact asks its share of the rise (m_riseAsk); else each end notes the edge's least
-	/// slack (m_riseSlack).
+	/// clearance each end whose level can rise (liftWeight) asks its share of the rise (m_riseAsk); else each end
+	/// notes the edge's least slack (m_riseSlack).
 	void liftEdge(const btSoftBody::Node* nodes, LiftEdge& edge, btScalar clearance, btScalar lipschitz);
-	/// liftEdgesOffSkin's last step, per node in contact: its rise grows by its largest ask (up to maxRise), or
-	/// shrinks by half the slack its edges have beyond the clearance (never below 0).
+	/// The share an edge end takes of its edge's lift: its inverse mass where its level can rise, else 0. A node in
+	/// contact can; so can one the collider read this substep (its reading is at its position) within the lift's
+	/// reach of the skin (below the offset plus the largest rise), held off the skin by its links: lifted from one
+	/// end only, an edge over a bulge rose by half of its end's rise and stuck at the largest rise, still sagging.
+	btScalar liftWeight(const btSoftBody::Node* nodes, int i) const;
+	/// Node i's rise ask becomes at least `ask` (a node not in contact is listed in m_liftNear at its first ask).
+	void askRise(int i, btScalar ask);
+	/// liftEdgesOffSkin's last step, per node in contact and per other end asked to rise (m_liftNear): its rise
+	/// grows by its largest ask (up to maxRise), or shrinks by half the slack its edges have beyond the clearance
+	/// (never below 0).
 	void updateNodeRises(btScalar clearance, btScalar maxRise);
+	void updateNodeRise(int i, btScalar clearance, btScalar maxRise);
 	/// The field geometry collideOnSkin works with (m_skinGroup).
 	const btSkinFieldGeometry& skinGeometry() const
 	{

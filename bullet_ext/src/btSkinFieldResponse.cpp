@@ -556,28 +556,56 @@ void btEllipsoidClothColliderCore::listEdgeNodes(int numNodes)
 
 void btEllipsoidClothColliderCore::updateNodeRises(btScalar clearance, btScalar maxRise)
 {
+	for (int k = 0; k < m_edgeActive.size(); ++k)
+		updateNodeRise(m_edgeActive[k], clearance, maxRise);
+	for (int k = 0; k < m_liftNear.size(); ++k)
+		updateNodeRise(m_liftNear[k], clearance, maxRise);
+	m_liftNear.resize(0);
+}
+
+void btEllipsoidClothColliderCore::updateNodeRise(int i, btScalar clearance, btScalar maxRise)
+{
 	// A level rises by at most a quarter of the skin offset per substep: the node phase pushes the node up by what
 	// its level rose, and a push of several millimetres in one substep stretched its links enough to throw the
 	// cloth about (a coarse cloth on a sphere bounced off it).
 	const btScalar maxStep = btScalar(0.25) * m_skinGeometry.offset();
-	for (int k = 0; k < m_edgeActive.size(); ++k)
+	btScalar& rise = m_nodeRise[i];
+	if (m_riseAsk[i] > btScalar(0))
 	{
-		const int i = m_edgeActive[k];
-		btScalar& rise = m_nodeRise[i];
-		if (m_riseAsk[i] > btScalar(0))
-		{
-			rise = btMin(rise + btMin(m_riseAsk[i], maxStep), maxRise);
-			++m_lastStats.m_nodesLifted;
-		}
-		else if (rise > btScalar(0) && m_riseSlack[i] > clearance)
-		{
-			// Every edge's middle stands more than twice the clearance off the skin: half of the excess goes (the
-			// next substep reads the edges again, so the level settles where its most sagging edge just clears).
-			rise = btMax(btScalar(0), rise - btScalar(0.5) * (m_riseSlack[i] - clearance));
-		}
-		m_riseAsk[i] = btScalar(0);
-		m_riseSlack[i] = SIMD_INFINITY;
+		rise = btMin(rise + btMin(m_riseAsk[i], maxStep), maxRise);
+		++m_lastStats.m_nodesLifted;
 	}
+	else if (rise > btScalar(0) && m_riseSlack[i] > clearance)
+	{
+		// Every edge's middle stands more than twice the clearance off the skin: half of the excess goes (the
+		// next substep reads the edges again, so the level settles where its most sagging edge just clears).
+		rise = btMax(btScalar(0), rise - btScalar(0.5) * (m_riseSlack[i] - clearance));
+	}
+	m_riseAsk[i] = btScalar(0);
+	m_riseSlack[i] = SIMD_INFINITY;
+}
+
+void btEllipsoidClothColliderCore::askRise(int i, btScalar ask)
+{
+	if (!(ask > btScalar(0)))
+		return;
+	if (!m_contactFlags[i] && m_riseAsk[i] == btScalar(0))
+		m_liftNear.push_back(i); // (updateNodeRises takes it up with the nodes in contact)
+	m_riseAsk[i] = btMax(m_riseAsk[i], ask);
+}
+
+btScalar btEllipsoidClothColliderCore::liftWeight(const btSoftBody::Node* nodes, int i) const
+{
+	if (m_contactFlags[i])
+		return nodes[i].m_im;
+	if (!m_nodeReadings)
+		return btScalar(0);
+	const btSkinFieldGeometry& geometry = m_skinGeometry;
+	const btVector3& reading = m_nodeReadings[i];
+	const btVector3 at = geometry.toBody() * nodes[i].m_x; // (as collideOnSkin maps it: the same point when read)
+	if (reading.x() != at.x() || reading.y() != at.y() || reading.z() != at.z())
+		return btScalar(0);
+	return reading.w() < geometry.offset() + geometry.maxRise() ? nodes[i].m_im : btScalar(0);
 }
 
 void btEllipsoidClothColliderCore::liftEdge(const btSoftBody::Node* nodes, LiftEdge& edge, btScalar clearance,
@@ -586,11 +614,8 @@ void btEllipsoidClothColliderCore::liftEdge(const btSoftBody::Node* nodes, LiftE
 	const btSkinFieldGeometry& geometry = m_skinGeometry;
 	const btSkinDistanceField& field = *geometry.field();
 	const int ia = edge.m_a, ib = edge.m_b;
-	// The ends whose level can rise: in contact, movable.
-	const btScalar wa = m_contactFlags[ia] ? nodes[ia].m_im : btScalar(0);
-	const btScalar wb = m_contactFlags[ib] ? nodes[ib].m_im : btScalar(0);
-	if (!(wa + wb > btScalar(0)))
-		return;
+	if (!(nodes[ia].m_im + nodes[ib].m_im > btScalar(0)))
+		return; // (pinned at both ends)
 	const btVector3& xa = nodes[ia].m_x;
 	const btVector3& xb = nodes[ib].m_x;
 	const btVector3 mid = (xa + xb) * btScalar(0.5);
@@ -626,12 +651,17 @@ void btEllipsoidClothColliderCore::liftEdge(const btSoftBody::Node* nodes, LiftE
 	const btScalar slope = g.length();
 	if (!(slope > btScalar(0.1)))
 		return;
+	// The ends whose level can rise: in contact or resting near the skin, movable.
+	const btScalar wa = liftWeight(nodes, ia);
+	const btScalar wb = liftWeight(nodes, ib);
+	if (!(wa + wb > btScalar(0)))
+		return;
 	// Raising both levels by d raises the middle by about d (the skin under a short edge is nearly parallel to it);
-	// split by inverse mass, each end in contact asks its share of what the middle lacks.
+	// split by inverse mass, each end that can rise asks its share of what the middle lacks.
 	const btScalar lack = (clearance - f) / slope;
 	const btScalar askA = lack * btScalar(2) * wa / (wa + wb), askB = lack * btScalar(2) * wb / (wa + wb);
-	m_riseAsk[ia] = btMax(m_riseAsk[ia], askA);
-	m_riseAsk[ib] = btMax(m_riseAsk[ib], askB);
+	askRise(ia, askA);
+	askRise(ib, askB);
 }
 
 // ---------------------------------------------------------------------------------------------------------------

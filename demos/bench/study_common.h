@@ -310,40 +310,4 @@ inline bodyfit::drape::BodyData bodyData(const bodyfit::TriMesh& full, const std
 	return b;
 }
 
-/// Midpoint subdivision: every triangle -> 4 (edge midpoints shared between neighbours). The surface is unchanged
-/// (the new vertices lie on the old triangles), only the vertex count grows ~4x: what the collider must not notice.
-inline bodyfit::TriMesh midpointSubdivide(const bodyfit::TriMesh& m)
-{
-	std::map<std::pair<int, int>, int> mid;
-	std::vector<Eigen::Vector3d> v;
-	v.reserve(size_t(m.V.rows()) * 4);
-	for (int i = 0; i < m.V.rows(); ++i)
-		v.push_back(m.V.row(i).transpose());
-	auto midpoint = [&](int a, int b) {
-		const auto key = std::minmax(a, b);
-		auto it = mid.find(key);
-		if (it != mid.end())
-			return it->second;
-		v.push_back(0.5 * (v[size_t(a)] + v[size_t(b)]));
-		const int id = int(v.size()) - 1;
-		mid.emplace(key, id);
-		return id;
-	};
-	bodyfit::TriMesh out;
-	out.F.resize(m.F.rows() * 4, 3);
-	for (int f = 0; f < m.F.rows(); ++f)
-	{
-		const int a = m.F(f, 0), b = m.F(f, 1), c = m.F(f, 2);
-		const int ab = midpoint(a, b), bc = midpoint(b, c), ca = midpoint(c, a);
-		out.F.row(4 * f + 0) << a, ab, ca;
-		out.F.row(4 * f + 1) << ab, b, bc;
-		out.F.row(4 * f + 2) << ca, bc, c;
-		out.F.row(4 * f + 3) << ab, bc, ca;
-	}
-	out.V.resize(int(v.size()), 3);
-	for (size_t i = 0; i < v.size(); ++i)
-		out.V.row(int(i)) = v[i].transpose();
-	return out;
-}
-
 } // namespace bodyfit_study

@@ -4,6 +4,8 @@
 // collider (btBvhTriangleMeshShape, Bullet's default soft-body path). Goal: ours flat within 10%.
 #include "bench/study_common.h"
 
+#include "bodyfit/fitting/subdivision.h"
+
 namespace
 {
 
@@ -41,8 +43,8 @@ int runBodyResolution(const bodyfit_bench::Context& ctx)
 		bodyfit::LoadedMesh loaded = bodyfit::loadTriMesh(assetPath(r.file));
 		for (int k = 0; k < r.subdivisions; ++k)
 		{
-			loaded.mesh = midpointSubdivide(loaded.mesh);
-			loaded.full = midpointSubdivide(loaded.full);
+			loaded.mesh = bodyfit::midpointSubdivide(loaded.mesh);
+			loaded.full = bodyfit::midpointSubdivide(loaded.full);
 		}
 		const bodyfit::TriMesh& mesh = loaded.mesh;
 		progress(tag, "%s (%s): %d vertices, segmentation + fit", r.file.c_str(), r.label.c_str(), mesh.vertexCount());

@@ -381,6 +381,24 @@ TEST_CASE("tight mode: a lower lift clearance rests the cloth closer and its edg
 	CHECK(quarter.meanCapDistance < half.meanCapDistance - 0.000125);
 }
 
+TEST_CASE("tight mode: an edge with one end held off the skin by its links is lifted from both ends", "[bullet_ext][skinfield][edges]")
+{
+	std::unique_ptr<btEllipsoidCompoundShape> probe = sphereUnionWithField();
+	const double tol = analyticTolerance(*probe->getSkinField());
+	// 7 x 7 nodes at clearance 0.25 on the sphere: where the cap's edges meet the cloth falling away from it, an edge
+	// joins a node in contact to one the links hold a few millimetres above its level. Lifted from its contact end
+	// only (the lift before 2026-12-07), the middle rose by half of that end's rise and an edge stayed 1.5 mm inside
+	// the skin (this check failed); lifted from both ends, every edge that fits under the highest level clears it.
+	const CoarseDrop drop = dropCoarseOnSphere(true, btScalar(0.25), 7);
+	REQUIRE(drop.edgesTested >= 12);
+	CHECK(drop.nodesLifted > 0);
+	CHECK(drop.minFittingEdgeDistance >= -tol);
+	CHECK(drop.minNodeDistance >= kSkin - tol);
+	// And no cap node climbs to the highest level (6 mm above the 2 mm offset) to do it: 8 mm less the 0.5 mm
+	// contact band (the highest cap node: 6.75 mm with the one-sided lift, 5.3 mm now).
+	CHECK(drop.maxCapDistance < kSkin + 0.006 - 0.0005);
+}
+
 TEST_CASE("tight mode: the edge lift follows links shuffled by randomizeConstraints mid-run", "[bullet_ext][skinfield][edges]")
 {
 	std::unique_ptr<btEllipsoidCompoundShape> probe = sphereUnionWithField();
@@ -733,3 +751,4 @@ TEST_CASE("tight mode: a kinematic box rising and turning through a pinned cloth
 	CHECK(stats.m_skinFallbacks == 0);
 	CHECK(double(stats.m_minSkinField) >= kSkin - double(btEllipsoidClothCollider::skinFieldTolerance(*scene.shape()->getSkinField())));
 }
+

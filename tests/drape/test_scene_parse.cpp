@@ -269,6 +269,20 @@ TEST_CASE("structural errors name the key", "[scene]")
 		j["garment"] = {{"type", "tube"}};
 		CHECK(parseError(j).find("effects[5].select: 'edge' needs a patch garment") != std::string::npos);
 	}
+	SECTION("a mesh garment's subdivisions")
+	{
+		json j = validDocument();
+		j["garment"] = {{"type", "skirt"}, {"mesh", bodyfit_test::assetPath("female_young.skirt.obj")}, {"subdivide", 2}};
+		j["effects"].erase(5); // (the pin selects a patch's edge)
+		CHECK(parseScene(j, kFile).garment.subdivisions == 2);
+		j["garment"]["subdivide"] = 4;
+		CHECK(parseError(j).find("garment.subdivide: value 4 is outside [0, 3]") != std::string::npos);
+		j["garment"]["subdivide"] = 1.5;
+		CHECK(parseError(j).find("garment.subdivide: expected an integer") != std::string::npos);
+		json patch = validDocument();
+		patch["garment"]["subdivide"] = 1; // a patch has its resolution instead
+		CHECK(parseError(patch).find("garment.subdivide: unknown key") != std::string::npos);
+	}
 	SECTION("both a fit file and fit parameters")
 	{
 		json j = validDocument();

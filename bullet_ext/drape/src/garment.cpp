@@ -2,6 +2,7 @@
 
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/subdivision.h"
 
 #include <BulletSoftBody/btSoftBody.h>
 #include <BulletSoftBody/btSoftBodyHelpers.h>
@@ -91,6 +92,8 @@ GarmentMesh loadGarment(const GarmentSpec& s)
 		const Eigen::Vector3d p = g.mesh.V.row(i).transpose();
 		g.mesh.V.row(i) = (centre + s.scale.cwiseProduct(p - centre) + s.offset).transpose();
 	}
+	for (int k = 0; k < s.subdivisions; ++k)
+		g.mesh = midpointSubdivide(g.mesh);
 	return g;
 }
 

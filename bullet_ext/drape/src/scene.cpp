@@ -357,6 +357,7 @@ GarmentSpec parseGarment(ObjectReader r)
 		if (r.has("scale_center"))
 			g.scaleCenter = r.vec3("scale_center", Eigen::Vector3d::Zero());
 		g.offset = r.vec3("offset", g.offset);
+		g.subdivisions = r.integer("subdivide", g.subdivisions, 0, kMaxGarmentSubdivisions);
 	}
 	else
 	{

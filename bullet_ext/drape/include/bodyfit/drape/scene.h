@@ -25,6 +25,7 @@ namespace bodyfit::drape
 constexpr double kMaxSceneCoordinate = 1000.0; ///< positions and offsets (m); as a fit file's (ellipsoid_io.h)
 constexpr double kMinGarmentSize = 0.01;       ///< patch sides, tube length (m); tube radius half of it
 constexpr double kMinGarmentScale = 0.01;      ///< skirt/tights scale factor
+constexpr int kMaxGarmentSubdivisions = 3;     ///< skirt/tights garment.subdivide (each: 4x the faces)
 constexpr double kMinClothEdge = 1e-4;         ///< generated cloth edge length (m)
 constexpr double kMaxWindSpeed = 50.0;         ///< per component (m/s); hurricane force is 33 m/s
 constexpr double kMaxTurbulence = 20.0;        ///< noise amplitude (m/s per component)
@@ -113,6 +114,9 @@ struct GarmentSpec
 	Eigen::Vector3d scale{1.0, 1.0, 1.0};
 	std::optional<Eigen::Vector3d> scaleCenter; ///< default: the centroid of the garment's vertices
 	Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+	/// Midpoint subdivisions of the mesh after loading (0..3; each: 4x the faces, every edge halved, the same surface).
+	/// A coarse garment's edges sag into curved skin between their nodes; halving them lets the cloth rest closer.
+	int subdivisions = 0;
 	// tube: open cylinder along +y
 	double radius = 0.2;
 	double length = 0.5;
