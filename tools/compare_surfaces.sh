@@ -9,7 +9,10 @@
 # before issue 14's contact flags), collision ms per step.
 # The same for the skirt and tights scenes on the bodies no bundled scene uses (UNSEEN, default male_young male_heavy
 # female_short), each with its own garment and fitted at load.
-# Usage: [UNSEEN="male_young ..."] tools/compare_surfaces.sh [BUILD_DIR] [OUT]
+# With FINE=1 (the default) every one of these scenes runs again on the tight surface, with and without the lift,
+# with its garment at twice the resolution (scene@fine: a mesh garment subdivided once, garment.subdivide; a patch at
+# 2n - 1 nodes per side): every edge half as long, so it sags a quarter as far into curved skin.
+# Usage: [UNSEEN="male_young ..."] [FINE=0] tools/compare_surfaces.sh [BUILD_DIR] [OUT]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=${1:-build}
@@ -32,12 +35,34 @@ json.dump(s, open(out, "w"), indent=1)
 PY
 	done
 done
+FINE=${FINE:-1}
+mkdir -p "$OUT/fine"
 for scene in demos/scenes/*.json "$OUT"/unseen/*.json; do
 	name=$(basename "$scene" .json)
 	case "$name" in animated_*) continue ;; esac # an animated body has no skin field (its skin moves)
 	"$BUILD/demos/bodyfit-drape" "$scene" --surface tight --metrics "$OUT/$name.tight.json" >/dev/null
 	"$BUILD/demos/bodyfit-drape" "$scene" --surface tight --no-lift-edges --metrics "$OUT/$name.tight-nolift.json" >/dev/null
 	"$BUILD/demos/bodyfit-drape" "$scene" --surface ellipsoids --metrics "$OUT/$name.ellipsoids.json" >/dev/null
+	[ "$FINE" = 1 ] || continue
+	python3 - "$scene" "$OUT/fine/$name@fine.json" <<'PY'
+import json, os, sys
+scene, out = sys.argv[1:]
+s = json.load(open(scene))
+base = os.path.dirname(os.path.abspath(scene))
+for section, key in (("body", "mesh"), ("body", "ellipsoids"), ("garment", "mesh")):
+    if key in s[section] and not os.path.isabs(s[section][key]):
+        s[section][key] = os.path.normpath(os.path.join(base, s[section][key]))
+g = s["garment"]
+if g["type"] in ("skirt", "tights"):
+    g["subdivide"] = 1
+else:
+    g["resolution"] = [2 * n - 1 for n in g["resolution"]]
+s["name"] = s["name"] + "@fine"
+json.dump(s, open(out, "w"), indent=1)
+PY
+	"$BUILD/demos/bodyfit-drape" "$OUT/fine/$name@fine.json" --surface tight --metrics "$OUT/$name@fine.tight.json" >/dev/null
+	"$BUILD/demos/bodyfit-drape" "$OUT/fine/$name@fine.json" --surface tight --no-lift-edges \
+		--metrics "$OUT/$name@fine.tight-nolift.json" >/dev/null
 done
 python3 - "$OUT" <<'PY'
 import json, pathlib, sys

@@ -114,7 +114,8 @@ struct GarmentSpec
 	Eigen::Vector3d scale{1.0, 1.0, 1.0};
 	std::optional<Eigen::Vector3d> scaleCenter; ///< default: the centroid of the garment's vertices
 	Eigen::Vector3d offset = Eigen::Vector3d::Zero();
-	/// Midpoint subdivisions of the mesh after loading (0..3; each: 4x the faces, every edge halved, the same surface).
+	/// garment.subdivide: midpoint subdivisions of the mesh after loading and scaling (0..3; each: 4x the faces, every
+	/// edge halved, the same surface).
 	/// A coarse garment's edges sag into curved skin between their nodes; halving them lets the cloth rest closer.
 	int subdivisions = 0;
 	// tube: open cylinder along +y
