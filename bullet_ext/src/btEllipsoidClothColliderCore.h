@@ -327,7 +327,7 @@ private:
 	/// grows by its largest ask (up to maxRise), or shrinks by half the slack its edges have beyond the clearance
 	/// (never below 0).
 	void updateNodeRises(btScalar clearance, btScalar maxRise);
-	void updateNodeRise(int i, btScalar clearance, btScalar maxRise);
+	void updateNodeRise(int i, btScalar clearance, btScalar maxRise, btScalar maxStep);
 	/// The field geometry collideOnSkin works with (m_skinGroup).
 	const btSkinFieldGeometry& skinGeometry() const
 	{
@@ -356,6 +356,11 @@ private:
 	/// The field at the two ends of the node's path: the start's from the node's last reading when it is that exact
 	/// point, else looked up (skinEnds), and the reading kept for the next substep (keepReading).
 	btSkinPathEnds skinEnds(const btSoftBody::Node& node, const btVector3& qb, const btVector3& xb) const;
+	/// Whether a node's reading (point in xyz, field value in w) was taken exactly at p (field frame).
+	static bool isReadingAt(const btVector3& reading, const btVector3& p)
+	{
+		return reading.x() == p.x() && reading.y() == p.y() && reading.z() == p.z();
+	}
 	void keepReading(const btSoftBody::Node& node, const btVector3& point, btScalar value);
 
 	// Tight mode on a skinned body, the skin of the instant (btSkinMeshResponse.cpp).

@@ -350,7 +350,7 @@ btSkinPathEnds btEllipsoidClothColliderCore::skinEnds(const btSoftBody::Node& no
 	// Bullet starts a substep where the last one left the node (btSoftBody::predictMotion: q = x), so its start is
 	// mostly the point of its last reading: the same point of the same field reads the same.
 	const btVector3* reading = m_nodeReadings ? &m_nodeReadings[&node - m_contactNodeBase] : 0;
-	if (reading && reading->x() == qb.x() && reading->y() == qb.y() && reading->z() == qb.z())
+	if (reading && isReadingAt(*reading, qb))
 	{
 		ends.m_fq = reading->w();
 		// (A stored brick that reads exactly +clamp counts as far here: a shorter march step, never a longer one.)
@@ -556,19 +556,19 @@ void btEllipsoidClothColliderCore::listEdgeNodes(int numNodes)
 
 void btEllipsoidClothColliderCore::updateNodeRises(btScalar clearance, btScalar maxRise)
 {
-	for (int k = 0; k < m_edgeActive.size(); ++k)
-		updateNodeRise(m_edgeActive[k], clearance, maxRise);
-	for (int k = 0; k < m_liftNear.size(); ++k)
-		updateNodeRise(m_liftNear[k], clearance, maxRise);
-	m_liftNear.resize(0);
-}
-
-void btEllipsoidClothColliderCore::updateNodeRise(int i, btScalar clearance, btScalar maxRise)
-{
 	// A level rises by at most a quarter of the skin offset per substep: the node phase pushes the node up by what
 	// its level rose, and a push of several millimetres in one substep stretched its links enough to throw the
 	// cloth about (a coarse cloth on a sphere bounced off it).
 	const btScalar maxStep = btScalar(0.25) * m_skinGeometry.offset();
+	for (int k = 0; k < m_edgeActive.size(); ++k)
+		updateNodeRise(m_edgeActive[k], clearance, maxRise, maxStep);
+	for (int k = 0; k < m_liftNear.size(); ++k)
+		updateNodeRise(m_liftNear[k], clearance, maxRise, maxStep);
+	m_liftNear.resize(0);
+}
+
+void btEllipsoidClothColliderCore::updateNodeRise(int i, btScalar clearance, btScalar maxRise, btScalar maxStep)
+{
 	btScalar& rise = m_nodeRise[i];
 	if (m_riseAsk[i] > btScalar(0))
 	{
@@ -602,8 +602,8 @@ btScalar btEllipsoidClothColliderCore::liftWeight(const btSoftBody::Node* nodes,
 		return btScalar(0);
 	const btSkinFieldGeometry& geometry = m_skinGeometry;
 	const btVector3& reading = m_nodeReadings[i];
-	const btVector3 at = geometry.toBody() * nodes[i].m_x; // (as collideOnSkin maps it: the same point when read)
-	if (reading.x() != at.x() || reading.y() != at.y() || reading.z() != at.z())
+	// (as collideOnSkin maps it: the same point when it was read)
+	if (!isReadingAt(reading, geometry.toBody() * nodes[i].m_x))
 		return btScalar(0);
 	return reading.w() < geometry.offset() + geometry.maxRise() ? nodes[i].m_im : btScalar(0);
 }
