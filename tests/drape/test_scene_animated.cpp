@@ -73,6 +73,7 @@ struct AnimatedRun
 	int samples = 0;
 	int nan = 0;
 	double maxEllipsoidDepth = 0.0;
+	double maxTravel = 0.0;       ///< largest distance of a body vertex from its place at the start, over the samples
 	double lastClipTime = 0.0;
 	bool tight = false;           ///< the scene's surface: the tight skin surface (default) or the ellipsoids
 	long long fieldNodes = 0;     ///< tested nodes decided on the bind-pose field in a bone's frame (tight)
@@ -103,11 +104,13 @@ void checkSurface(const AnimatedRun& r)
 	}
 }
 
-AnimatedRun runAnimated(Scene scene, int steps)
+/// `steps` steps of `scene` with `body` (the scene's body, or one playing a test clip), sampled every 5 steps and at
+/// the last.
+AnimatedRun runAnimated(Scene scene, const BodyData& body, int steps)
 {
 	scene.sampleEvery = 5;
-	const BodyData body = loadBody(scene);
 	DrapeSimulation sim(scene, body);
+	const bodyfit::TriMesh start = sim.bodyMeshWorld();
 	AnimatedRun r;
 	r.tight = scene.collider.tightSurface;
 	r.skinMesh = scene.collider.skinMesh;
@@ -123,11 +126,17 @@ AnimatedRun runAnimated(Scene scene, int steps)
 			r.maxInside = std::max(r.maxInside, s.insideBody);
 			r.nan = std::max(r.nan, s.nanNodes);
 			r.maxEllipsoidDepth = std::max(r.maxEllipsoidDepth, s.maxEllipsoidDepth);
+			r.maxTravel = std::max(r.maxTravel, (sim.bodyMeshWorld().V - start.V).rowwise().norm().maxCoeff());
 			++r.samples;
 		}
 	}
 	r.lastClipTime = sim.skinnedDriver()->clipTime();
 	return r;
+}
+
+AnimatedRun runAnimated(const Scene& scene, int steps)
+{
+	return runAnimated(scene, loadBody(scene), steps);
 }
 
 } // namespace
@@ -469,31 +478,15 @@ TEST_CASE("a faster, deeper clip than the bundled ones: the skirt under +-60 deg
 	{
 		INFO((skinMesh ? "with collider.skin_mesh" : "default"));
 		Scene scene = loadScene(kWalkSkirt);
-		scene.sampleEvery = 5;
 		scene.collider.skinMesh = skinMesh;
 		BodyData body = loadBody(scene);
 		playClip(body, kickClip(*body.animation->rig));
-		DrapeSimulation sim(scene, body);
-		int maxInside = 0, nan = 0;
-		double maxDepth = 0.0, maxKneeTravel = 0.0;
-		const bodyfit::TriMesh bind = sim.bodyMeshWorld();
-		for (int k = 1; k <= 192; ++k) // the whole 1.6 s clip
-		{
-			sim.step();
-			if (k % 5 == 0)
-			{
-				const ClothSample s = sim.sample();
-				maxInside = std::max(maxInside, s.insideBody);
-				nan = std::max(nan, s.nanNodes);
-				maxDepth = std::max(maxDepth, s.maxEllipsoidDepth);
-				maxKneeTravel = std::max(maxKneeTravel, (sim.bodyMeshWorld().V - bind.V).rowwise().norm().maxCoeff());
-			}
-		}
-		CHECK(maxKneeTravel > 0.4); // the clip is deep: a foot swings by more than 40 cm
-		CHECK(maxInside == 0);
-		CHECK(nan == 0);
+		const AnimatedRun r = runAnimated(scene, body, 192); // the whole 1.6 s clip
+		CHECK(r.maxTravel > 0.4); // the clip is deep: a foot swings by more than 40 cm
+		CHECK(r.maxInside == 0);
+		CHECK(r.nan == 0);
 		if (!scene.collider.tightSurface) // the tight surface rests nodes inside the union (checkSurface)
-			CHECK(maxDepth < 1e-6);
+			CHECK(r.maxEllipsoidDepth < 1e-6);
 	}
 }
 
@@ -531,27 +524,13 @@ TEST_CASE("deeper poses than the bundled clips: a sit under the skirt, the arms 
 	{
 		INFO(c.scene);
 		Scene scene = loadScene(std::string(BODYFIT_SCENE_DIR) + "/" + c.scene);
-		scene.sampleEvery = 5;
 		BodyData body = loadBody(scene);
 		playClip(body, turnClip(*body.animation->rig, "deep", c.turns, c.keyStep));
-		DrapeSimulation sim(scene, body);
 		const int steps = int(std::lround(body.animation->rig->clips.back().duration / scene.solver.dt));
-		const bodyfit::TriMesh bind = sim.bodyMeshWorld();
-		int maxInside = 0, nan = 0;
-		double travel = 0.0;
-		for (int k = 1; k <= steps; ++k)
-		{
-			sim.step();
-			if (k % 5 != 0)
-				continue;
-			const ClothSample s = sim.sample();
-			maxInside = std::max(maxInside, s.insideBody);
-			nan = std::max(nan, s.nanNodes);
-			travel = std::max(travel, (sim.bodyMeshWorld().V - bind.V).rowwise().norm().maxCoeff());
-		}
-		CHECK(travel > 0.4);
-		CHECK(maxInside == 0);
-		CHECK(nan == 0);
+		const AnimatedRun r = runAnimated(scene, body, steps);
+		CHECK(r.maxTravel > 0.4);
+		CHECK(r.maxInside == 0);
+		CHECK(r.nan == 0);
 	}
 }
 
