@@ -25,6 +25,7 @@ are rasterised with 1e-3 cell of slack and the growth is rounded up by 1e-5 of i
 #include "src/btEllipsoidSweep.h"
 
 #include "src/btEllipsoidNarrowPhase.h"
+#include "src/btBoxSelect.h"
 
 namespace
 {
@@ -345,11 +346,7 @@ int btEllipsoidSweep::candidates(const btVector3& q, const btVector3& x, btScala
 	{
 		const btScalar grow = growth(q, x, radius);
 		const btVector3 g(grow, grow, grow);
-		btVector3 boxMin = q, boxMax = q;
-		boxMin.setMin(x);
-		boxMax.setMax(x);
-		boxMin -= g;
-		boxMax += g;
+		const btVector3 boxMin = btSelectMin(q, x) - g, boxMax = btSelectMax(q, x) + g;
 		if (boxesOverlap(boxMin, boxMax, m_origin, m_unionMax))
 		{
 			// Until the lists pay for themselves (kTestedQueries), every swept box is tested: the same set (the lists

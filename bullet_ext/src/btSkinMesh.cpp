@@ -4,6 +4,8 @@ bodyfit: the skinned skin as a refitted triangle mesh. See btSkinMesh.h.
 
 #include "bodyfit/bullet_ext/btSkinMesh.h"
 
+#include "src/btBoxSelect.h"
+
 namespace
 {
 /// Triangles per leaf of the tree (at most). 4 against 8: the walk tights' skin-mesh response takes 10% fewer
@@ -209,23 +211,23 @@ void btSkinMesh::refit()
 		Node& node = m_nodes[i];
 		if (node.m_right < 0)
 		{
-			const btAlignedObjectArray<btVector3>& pose = m_poses[m_current];
+			const btVector3* pose = &m_poses[m_current][0];
 			const int* corner = &m_leafVertices[node.m_vertexFirst];
-			node.m_min = node.m_max = pose[corner[0]];
+			btVector3 lo = pose[corner[0]], hi = lo;
 			for (int k = 1; k < node.m_vertexCount; ++k)
 			{
-				node.m_min.setMin(pose[corner[k]]);
-				node.m_max.setMax(pose[corner[k]]);
+				lo = btSelectMin(lo, pose[corner[k]]);
+				hi = btSelectMax(hi, pose[corner[k]]);
 			}
+			node.m_min = lo;
+			node.m_max = hi;
 		}
 		else
 		{
 			const Node& left = m_nodes[i + 1];
 			const Node& right = m_nodes[node.m_right];
-			node.m_min = left.m_min;
-			node.m_max = left.m_max;
-			node.m_min.setMin(right.m_min);
-			node.m_max.setMax(right.m_max);
+			node.m_min = btSelectMin(left.m_min, right.m_min);
+			node.m_max = btSelectMax(left.m_max, right.m_max);
 		}
 	}
 }
@@ -248,9 +250,7 @@ namespace
 btScalar boxDistance2(const btVector3& p, const btVector3& lo, const btVector3& hi)
 {
 	// Per axis the gap is lo - p below the box, p - hi above it (at most one of them is positive), else 0.
-	btVector3 gap = lo - p;
-	gap.setMax(p - hi);
-	gap.setMax(btVector3(0, 0, 0));
+	const btVector3 gap = btSelectMax(btSelectMax(lo - p, p - hi), btVector3(0, 0, 0));
 	return gap.length2();
 }
 
@@ -258,12 +258,7 @@ btScalar boxDistance2(const btVector3& p, const btVector3& lo, const btVector3& 
 /// of the triangle is nearer.
 btScalar triangleBoxDistance2(const btVector3& p, const btVector3& a, const btVector3& b, const btVector3& c)
 {
-	btVector3 lo = a, hi = a;
-	lo.setMin(b);
-	lo.setMin(c);
-	hi.setMax(b);
-	hi.setMax(c);
-	return boxDistance2(p, lo, hi);
+	return boxDistance2(p, btSelectMin(btSelectMin(a, b), c), btSelectMax(btSelectMax(a, b), c));
 }
 } // namespace
 
@@ -409,11 +404,18 @@ bool btSkinMesh::putsOnOtherSide(const btVector3& p, int t, btScalar radius2, bt
 	const btVector3& a = vertex(t, 0);
 	const btVector3& b = vertex(t, 1);
 	const btVector3& c = vertex(t, 2);
-	if (triangleBoxDistance2(p, a, b, c) > radius2)
+	const btScalar box2 = triangleBoxDistance2(p, a, b, c);
+	if (box2 > radius2)
 		return false;
 	const btVector3 cross = (b - a).cross(c - a);
 	const btScalar h = sign * m_orientation * (p - a).dot(cross); // (the height times |cross|)
-	if (!(h < btScalar(0)) || h * h > radius2 * cross.length2())
+	const btScalar cross2 = cross.length2();
+	if (!(h < btScalar(0)) || h * h > radius2 * cross2)
+		return false;
+	// The box holds the triangle, so |p - q|^2 >= box2: the trusted-direction test below cannot pass unless
+	// h^2 >= kMinNormalCosine^2 box2 |cross|^2 (on a convex patch p lies below its neighbours' planes, but beside
+	// them, not over them: this rejects those before q is computed; the answer is the same).
+	if (h * h < kMinNormalCosine * kMinNormalCosine * box2 * cross2)
 		return false;
 	btScalar bary[3];
 	btClosestOnTriangle(p, a, b, c, bary);
@@ -421,7 +423,7 @@ bool btSkinMesh::putsOnOtherSide(const btVector3& p, int t, btScalar radius2, bt
 	if (d2 > radius2 || d2 <= kOnSkin * kOnSkin)
 		return false;
 	// -h / |cross| >= kMinNormalCosine sqrt(d2), squared (both sides are positive)
-	return h * h >= kMinNormalCosine * kMinNormalCosine * d2 * cross.length2();
+	return h * h >= kMinNormalCosine * kMinNormalCosine * d2 * cross2;
 }
 
 btVector3 btSkinMesh::previousPoint(const btSkinMeshPoint& point) const
