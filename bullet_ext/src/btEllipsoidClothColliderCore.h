@@ -145,6 +145,8 @@ private:
 		}
 		/// Lists the soft body's edges again if its links or nodes changed (size, place, rest lengths); true if it did.
 		bool listEdges(btSoftBody& softBody);
+		/// Orders m_edges by their lower node index (listEdges).
+		void sortEdgesByNode(int numNodes);
 	};
 
 	btEllipsoidCompoundShape* m_ownedCompound;

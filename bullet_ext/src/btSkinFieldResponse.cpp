@@ -427,6 +427,25 @@ bool btEllipsoidClothColliderCore::respondOnSkin(btSoftBody::Node& node, const b
 	return stopped;
 }
 
+void btEllipsoidClothColliderCore::ContactRecord::sortEdgesByNode(int numNodes)
+{
+	// Counting sort by the lower node index, stable (link order within a node): the lift's pass over the edges then
+	// reads the nodes about in order, as the node phase does.
+	btAlignedObjectArray<int> start;
+	start.resize(numNodes + 1);
+	for (int i = 0; i <= numNodes; ++i)
+		start[i] = 0;
+	for (int e = 0; e < m_edges.size(); ++e)
+		++start[btMin(m_edges[e].m_a, m_edges[e].m_b) + 1];
+	for (int i = 0; i < numNodes; ++i)
+		start[i + 1] += start[i];
+	btAlignedObjectArray<LiftEdge> sorted;
+	sorted.resize(m_edges.size());
+	for (int e = 0; e < m_edges.size(); ++e)
+		sorted[start[btMin(m_edges[e].m_a, m_edges[e].m_b)]++] = m_edges[e];
+	m_edges.copyFromArray(sorted);
+}
+
 bool btEllipsoidClothColliderCore::ContactRecord::listEdges(btSoftBody& softBody)
 {
 	const int numLinks = softBody.m_links.size(), numNodes = softBody.m_nodes.size();
@@ -456,6 +475,7 @@ bool btEllipsoidClothColliderCore::ContactRecord::listEdges(btSoftBody& softBody
 		edge.m_b = int(link.m_n[1] - base);
 		m_edges.push_back(edge);
 	}
+	sortEdgesByNode(numNodes);
 	// The edges at each node (counting sort by node).
 	m_nodeEdgeStart.resize(numNodes + 1);
 	for (int i = 0; i <= numNodes; ++i)
@@ -516,23 +536,37 @@ void btEllipsoidClothColliderCore::liftEdgesOffSkin(btSoftBody* softBody)
 		record->m_edgeRevision = m_compound->getAnalyticRevision();
 		record->m_edgeClearance = clearance;
 	}
-	const int* edgeStart = &record->m_nodeEdgeStart[0];
-	const int* nodeEdges = numEdges > 0 ? &record->m_nodeEdges[0] : 0;
 	const btSoftBody::Node* nodes = &softBody->m_nodes[0];
 	const btScalar lipschitz = field.getLipschitz();
 	m_riseAsk.resize(numNodes, btScalar(0));
 	m_riseSlack.resize(numNodes, SIMD_INFINITY);
 	listEdgeNodes(numNodes);
-	for (int k = 0; k < m_edgeActive.size(); ++k)
+	// Every edge with an end in contact, once (the order does not matter: asks and slacks combine by max and min).
+	// Where a quarter of the nodes or more touch (a tight garment), one pass over the edge array in order: the per-node
+	// lists below jump about the edge array, and their "looked at from the other end" test is a coin toss (the walk
+	// tights' lift took 48% of the tight collider's mispredicted branches and 37% of its level-2 cache misses that way,
+	// callgrind --branch-sim / --cache-sim). Where few touch, only the edges of those nodes.
+	if (4 * m_edgeActive.size() >= numNodes)
 	{
-		const int i = m_edgeActive[k];
-		for (int s = edgeStart[i]; s < edgeStart[i + 1]; ++s)
+		for (int e = 0; e < numEdges; ++e)
+			if (m_contactFlags[edges[e].m_a] | m_contactFlags[edges[e].m_b])
+				liftEdge(nodes, edges[e], clearance, lipschitz);
+	}
+	else
+	{
+		const int* edgeStart = &record->m_nodeEdgeStart[0];
+		const int* nodeEdges = numEdges > 0 ? &record->m_nodeEdges[0] : 0;
+		for (int k = 0; k < m_edgeActive.size(); ++k)
 		{
-			LiftEdge& edge = edges[nodeEdges[s]];
-			const int j = edge.m_a == i ? edge.m_b : edge.m_a;
-			if (j < i && m_contactFlags[j])
-				continue; // looked at from j
-			liftEdge(nodes, edge, clearance, lipschitz);
+			const int i = m_edgeActive[k];
+			for (int s = edgeStart[i]; s < edgeStart[i + 1]; ++s)
+			{
+				LiftEdge& edge = edges[nodeEdges[s]];
+				const int j = edge.m_a == i ? edge.m_b : edge.m_a;
+				if (j < i && m_contactFlags[j])
+					continue; // looked at from j
+				liftEdge(nodes, edge, clearance, lipschitz);
+			}
 		}
 	}
 	updateNodeRises(clearance, maxRise);
@@ -638,7 +672,7 @@ void btEllipsoidClothColliderCore::liftEdge(const btSoftBody::Node* nodes, LiftE
 	if ((xb - xa).length2() > btScalar(2.25) * edge.m_rest * edge.m_rest)
 		return;
 	const btVector3 midBody = geometry.toBody() * mid;
-	btVector3 g;
+	btVector3 g(0, 0, 0); // (set where the field reads below the clearance, the only case that reads it)
 	const btScalar f = field.distanceAndGradientBelow(midBody, clearance, g); // the slope only to ask for a rise
 	edge.m_mid = mid;
 	edge.m_slack = f - clearance - geometry.margin();

@@ -122,7 +122,16 @@ public:
 	/// The field and its unnormalised gradient at p (the interpolant's; zero in far bricks and off the grid).
 	btScalar distanceAndGradient(const btVector3& p, btVector3& gradient) const
 	{
-		return distanceAndGradientBelow(p, SIMD_INFINITY, gradient); // (the field is finite: below it everywhere)
+		const short* s;
+		btVector3 t;
+		const int where = locate(p, s, t);
+		if (where != 0)
+		{
+			gradient.setValue(0, 0, 0);
+			return where == 1 ? m_clamp : -m_clamp;
+		}
+		gradient = trilinearGradient(s, t);
+		return trilinear(s, t);
 	}
 
 	/// The field at p, and its gradient only where the field reads below `below` (else `gradient` is left as it is):
