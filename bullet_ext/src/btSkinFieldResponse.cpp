@@ -672,7 +672,7 @@ void btEllipsoidClothColliderCore::liftEdge(const btSoftBody::Node* nodes, LiftE
 	if ((xb - xa).length2() > btScalar(2.25) * edge.m_rest * edge.m_rest)
 		return;
 	const btVector3 midBody = geometry.toBody() * mid;
-	btVector3 g(0, 0, 0); // (set where the field reads below the clearance, the only case that reads it)
+	btVector3 g;
 	const btScalar f = field.distanceAndGradientBelow(midBody, clearance, g); // the slope only to ask for a rise
 	edge.m_mid = mid;
 	edge.m_slack = f - clearance - geometry.margin();

@@ -122,20 +122,11 @@ public:
 	/// The field and its unnormalised gradient at p (the interpolant's; zero in far bricks and off the grid).
 	btScalar distanceAndGradient(const btVector3& p, btVector3& gradient) const
 	{
-		const short* s;
-		btVector3 t;
-		const int where = locate(p, s, t);
-		if (where != 0)
-		{
-			gradient.setValue(0, 0, 0);
-			return where == 1 ? m_clamp : -m_clamp;
-		}
-		gradient = trilinearGradient(s, t);
-		return trilinear(s, t);
+		return distanceAndGradientBelow(p, SIMD_INFINITY, gradient); // (the field is finite: below it everywhere)
 	}
 
-	/// The field at p, and its gradient only where the field reads below `below` (else `gradient` is left as it is):
-	/// for callers that need the slope only to come back up to a level (one cell lookup either way).
+	/// The field at p, and its gradient only where the field reads below `below` (else `gradient` is zero): for callers
+	/// that need the slope only to come back up to a level (one cell lookup either way).
 	btScalar distanceAndGradientBelow(const btVector3& p, btScalar below, btVector3& gradient) const
 	{
 		const short* s;
@@ -149,6 +140,8 @@ public:
 		const btScalar f = trilinear(s, t);
 		if (f < below)
 			gradient = trilinearGradient(s, t);
+		else
+			gradient.setValue(0, 0, 0);
 		return f;
 	}
 
