@@ -273,6 +273,113 @@ RefineStatus refineStatusFromName(const Reader& r, const std::string& s, const s
 	r.fail(field, "unknown status \"" + s + "\"");
 }
 
+/// The document tree of `text`, refused before parsing when it nests too deep, with nlohmann's message (without its
+/// exception tag) when it is not JSON.
+Json parseJsonText(const std::string& text, const std::string& name)
+{
+	const std::string depth = jsonDepthProblem(text);
+	if (!depth.empty()) // before a tree is built: deep nesting overflows the stack of recursive JSON code
+		throw FormatError(name + ": not a usable JSON document: " + depth);
+	try
+	{
+		return Json::parse(text);
+	}
+	catch (const nlohmann::json::exception& e)
+	{
+		// nlohmann's messages: "[json.exception.parse_error.101] parse error at line L, column C: ...",
+		// "[json.exception.out_of_range.406] number overflow parsing '1e999'".
+		std::string what = e.what();
+		const std::size_t pos = what.find("] ");
+		throw FormatError(name + ": not valid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
+	}
+}
+
+/// format, version, units and up: a fit file of this build's version, in metres, +y up.
+void checkFitHeader(const Reader& r, const Json& doc)
+{
+	const std::string format = r.string(r.require(doc, "format", ""), "format");
+	if (format != kEllipsoidFormat)
+		r.fail("format", "must be \"" + std::string(kEllipsoidFormat) + "\" (got \"" + format + "\")");
+	const int version = r.integer(r.require(doc, "version", ""), "version", 0);
+	if (version != kEllipsoidFormatVersion)
+		r.fail("version", "unsupported version " + std::to_string(version) + " (this build reads version " +
+							  std::to_string(kEllipsoidFormatVersion) + ")");
+	if (doc.contains("units") && r.string(doc["units"], "units") != "m")
+		r.fail("units", "must be \"m\"");
+	if (doc.contains("up") && r.string(doc["up"], "up") != "+y")
+		r.fail("up", "must be \"+y\"");
+}
+
+/// The optional "source" and "params" sections (what was fitted, with which settings).
+void readSourceAndParams(const Reader& r, const Json& doc, BodyFit& fit)
+{
+	if (doc.contains("source"))
+	{
+		const Json& s = r.object(doc["source"], "source");
+		if (s.contains("mesh"))
+			fit.source.mesh = r.string(s["mesh"], "source.mesh");
+		if (s.contains("vertices"))
+			fit.source.vertices = r.integer(s["vertices"], "source.vertices", 0);
+		if (s.contains("height"))
+			fit.source.height = r.nonNegative(s["height"], "source.height");
+	}
+	if (doc.contains("params"))
+	{
+		const Json& p = r.object(doc["params"], "params");
+		if (p.contains("mu_torso"))
+			fit.params.muTorso = r.nonNegative(p["mu_torso"], "params.mu_torso");
+		if (p.contains("mu_limbs"))
+			fit.params.muLimbs = r.nonNegative(p["mu_limbs"], "params.mu_limbs");
+		if (p.contains("relative_to_height"))
+			fit.params.relativeToHeight = r.boolean(p["relative_to_height"], "params.relative_to_height");
+		if (p.contains("sigma"))
+			fit.params.sigma = r.nonNegative(p["sigma"], "params.sigma");
+		if (p.contains("max_ellipsoids"))
+			fit.params.maxEllipsoids = r.integer(p["max_ellipsoids"], "params.max_ellipsoids", 0);
+		if (p.contains("min_radius"))
+			fit.params.minRadius = r.nonNegative(p["min_radius"], "params.min_radius");
+		if (p.contains("recluster_group"))
+			fit.params.reclusterGroup = r.boolean(p["recluster_group"], "params.recluster_group");
+		if (p.contains("cover_triangles"))
+			fit.params.coverTriangles = r.boolean(p["cover_triangles"], "params.cover_triangles");
+		if (p.contains("cover_spacing"))
+			fit.params.coverSpacing = r.nonNegative(p["cover_spacing"], "params.cover_spacing");
+	}
+}
+
+/// The optional report sections: "timing_ms", "stats" (its count must match the list), "refinement", "warnings".
+void readFitReport(const Reader& r, const Json& doc, BodyFit& fit)
+{
+	if (doc.contains("timing_ms"))
+		for (const auto& item : r.object(doc["timing_ms"], "timing_ms").items())
+			fit.timings.push_back({item.key(), r.nonNegative(item.value(), "timing_ms." + item.key())});
+	if (doc.contains("stats"))
+	{
+		const Json& s = r.object(doc["stats"], "stats");
+		if (s.contains("count") && r.integer(s["count"], "stats.count", 0) != int(fit.ellipsoids.size()))
+			r.fail("stats.count", "is " + std::to_string(s["count"].get<long long>()) + " but the file has " +
+									  std::to_string(fit.ellipsoids.size()) + " ellipsoids");
+	}
+	if (doc.contains("refinement"))
+	{
+		const Json& s = r.object(doc["refinement"], "refinement");
+		if (s.contains("status"))
+			fit.status = refineStatusFromName(r, r.string(s["status"], "refinement.status"), "refinement.status");
+		if (s.contains("splits_accepted"))
+			fit.splitsAccepted = r.integer(s["splits_accepted"], "refinement.splits_accepted", 0);
+		if (s.contains("splits_rejected"))
+			fit.splitsRejected = r.integer(s["splits_rejected"], "refinement.splits_rejected", 0);
+	}
+	if (doc.contains("warnings"))
+	{
+		const Json& w = doc["warnings"];
+		if (!w.is_array())
+			r.fail("warnings", "must be an array of strings");
+		for (std::size_t i = 0; i < w.size(); ++i)
+			fit.warnings.push_back(r.string(w[i], "warnings[" + std::to_string(i) + "]"));
+	}
+}
+
 } // namespace
 
 std::string toEllipsoidJson(const BodyFit& fit)
@@ -362,104 +469,17 @@ void writeEllipsoidJson(const std::string& path, const BodyFit& fit)
 BodyFit parseEllipsoidJson(const std::string& text, const std::string& name)
 {
 	const Reader r(name);
-	const std::string depth = jsonDepthProblem(text);
-	if (!depth.empty()) // before a tree is built: deep nesting overflows the stack of recursive JSON code
-		throw FormatError(name + ": not a usable JSON document: " + depth);
-	Json doc;
-	try
-	{
-		doc = Json::parse(text);
-	}
-	catch (const nlohmann::json::exception& e)
-	{
-		// nlohmann's messages: "[json.exception.parse_error.101] parse error at line L, column C: ...",
-		// "[json.exception.out_of_range.406] number overflow parsing '1e999'".
-		std::string what = e.what();
-		const std::size_t pos = what.find("] ");
-		throw FormatError(name + ": not valid JSON: " + (pos == std::string::npos ? what : what.substr(pos + 2)));
-	}
+	const Json doc = parseJsonText(text, name);
 	r.object(doc, "document");
-
-	const std::string format = r.string(r.require(doc, "format", ""), "format");
-	if (format != kEllipsoidFormat)
-		r.fail("format", "must be \"" + std::string(kEllipsoidFormat) + "\" (got \"" + format + "\")");
-	const int version = r.integer(r.require(doc, "version", ""), "version", 0);
-	if (version != kEllipsoidFormatVersion)
-		r.fail("version", "unsupported version " + std::to_string(version) + " (this build reads version " +
-							  std::to_string(kEllipsoidFormatVersion) + ")");
-	if (doc.contains("units") && r.string(doc["units"], "units") != "m")
-		r.fail("units", "must be \"m\"");
-	if (doc.contains("up") && r.string(doc["up"], "up") != "+y")
-		r.fail("up", "must be \"+y\"");
-
+	checkFitHeader(r, doc);
 	BodyFit fit;
-	if (doc.contains("source"))
-	{
-		const Json& s = r.object(doc["source"], "source");
-		if (s.contains("mesh"))
-			fit.source.mesh = r.string(s["mesh"], "source.mesh");
-		if (s.contains("vertices"))
-			fit.source.vertices = r.integer(s["vertices"], "source.vertices", 0);
-		if (s.contains("height"))
-			fit.source.height = r.nonNegative(s["height"], "source.height");
-	}
-	if (doc.contains("params"))
-	{
-		const Json& p = r.object(doc["params"], "params");
-		if (p.contains("mu_torso"))
-			fit.params.muTorso = r.nonNegative(p["mu_torso"], "params.mu_torso");
-		if (p.contains("mu_limbs"))
-			fit.params.muLimbs = r.nonNegative(p["mu_limbs"], "params.mu_limbs");
-		if (p.contains("relative_to_height"))
-			fit.params.relativeToHeight = r.boolean(p["relative_to_height"], "params.relative_to_height");
-		if (p.contains("sigma"))
-			fit.params.sigma = r.nonNegative(p["sigma"], "params.sigma");
-		if (p.contains("max_ellipsoids"))
-			fit.params.maxEllipsoids = r.integer(p["max_ellipsoids"], "params.max_ellipsoids", 0);
-		if (p.contains("min_radius"))
-			fit.params.minRadius = r.nonNegative(p["min_radius"], "params.min_radius");
-		if (p.contains("recluster_group"))
-			fit.params.reclusterGroup = r.boolean(p["recluster_group"], "params.recluster_group");
-		if (p.contains("cover_triangles"))
-			fit.params.coverTriangles = r.boolean(p["cover_triangles"], "params.cover_triangles");
-		if (p.contains("cover_spacing"))
-			fit.params.coverSpacing = r.nonNegative(p["cover_spacing"], "params.cover_spacing");
-	}
-
+	readSourceAndParams(r, doc, fit);
 	const Json& list = r.require(doc, "ellipsoids", "");
 	if (!list.is_array())
 		r.fail("ellipsoids", "must be an array");
 	for (std::size_t i = 0; i < list.size(); ++i)
 		fit.ellipsoids.push_back(readEllipsoid(r, list[i], "ellipsoids[" + std::to_string(i) + "]"));
-
-	if (doc.contains("timing_ms"))
-		for (const auto& item : r.object(doc["timing_ms"], "timing_ms").items())
-			fit.timings.push_back({item.key(), r.nonNegative(item.value(), "timing_ms." + item.key())});
-	if (doc.contains("stats"))
-	{
-		const Json& s = r.object(doc["stats"], "stats");
-		if (s.contains("count") && r.integer(s["count"], "stats.count", 0) != int(fit.ellipsoids.size()))
-			r.fail("stats.count", "is " + std::to_string(s["count"].get<long long>()) + " but the file has " +
-									  std::to_string(fit.ellipsoids.size()) + " ellipsoids");
-	}
-	if (doc.contains("refinement"))
-	{
-		const Json& s = r.object(doc["refinement"], "refinement");
-		if (s.contains("status"))
-			fit.status = refineStatusFromName(r, r.string(s["status"], "refinement.status"), "refinement.status");
-		if (s.contains("splits_accepted"))
-			fit.splitsAccepted = r.integer(s["splits_accepted"], "refinement.splits_accepted", 0);
-		if (s.contains("splits_rejected"))
-			fit.splitsRejected = r.integer(s["splits_rejected"], "refinement.splits_rejected", 0);
-	}
-	if (doc.contains("warnings"))
-	{
-		const Json& w = doc["warnings"];
-		if (!w.is_array())
-			r.fail("warnings", "must be an array of strings");
-		for (std::size_t i = 0; i < w.size(); ++i)
-			fit.warnings.push_back(r.string(w[i], "warnings[" + std::to_string(i) + "]"));
-	}
+	readFitReport(r, doc, fit);
 	if (doc.contains("skinning"))
 		fit.skinning = parseSkinBinding(doc["skinning"].dump(), name, int(fit.ellipsoids.size()));
 	if (doc.contains("skin_field"))

@@ -272,10 +272,11 @@ FitQualityReference::FitQualityReference(const TriMesh& mesh, int voxelResolutio
 
 // ------------------------------------------------------------------------------------------------ measure
 
-FitQuality measureFitQuality(const FitQualityReference& ref, const std::vector<Ellipsoid>& ellipsoids,
-							 const FitQualityOptions& options)
+namespace
 {
-	const auto t0 = std::chrono::steady_clock::now();
+
+void validateQualityInput(const std::vector<Ellipsoid>& ellipsoids, const FitQualityOptions& options)
+{
 	if (ellipsoids.empty())
 		throw InvalidInputError("measureFitQuality: the ellipsoid list is empty");
 	for (size_t j = 0; j < ellipsoids.size(); ++j)
@@ -286,190 +287,237 @@ FitQuality measureFitQuality(const FitQualityReference& ref, const std::vector<E
 		throw InvalidInputError("measureFitQuality: sample spacing must be a positive number");
 	if (options.minSamplesPerEllipsoid < 1)
 		throw InvalidInputError("measureFitQuality: minSamplesPerEllipsoid must be >= 1");
+}
 
-	const int n = int(ellipsoids.size());
-	FitQuality q;
-	q.ellipsoidCount = n;
-	std::vector<Eigen::AlignedBox3d> boxes(static_cast<size_t>(n));
-	for (int j = 0; j < n; ++j)
-		boxes[size_t(j)] = ellipsoids[size_t(j)].aabb();
+/// The ellipsoids with their boxes, and the two questions every measure asks of their union.
+struct EllipsoidUnion
+{
+	const std::vector<Ellipsoid>& ellipsoids;
+	std::vector<Eigen::AlignedBox3d> boxes;
 
-	// ---- air gap: area-weighted samples on the exposed union surface
-	if (options.computeAirGap)
+	explicit EllipsoidUnion(const std::vector<Ellipsoid>& e) : ellipsoids(e)
 	{
-		constexpr double kGolden = 2.399963229728653; // pi (3 - sqrt 5)
-		std::vector<std::pair<double, double>> gapWeight;
-		double exposedArea = 0.0, insideBodyArea = 0.0, gapSum = 0.0, weightSum = 0.0;
-		std::vector<int> others;
-		for (int j = 0; j < n; ++j)
-		{
-			const Ellipsoid& e = ellipsoids[size_t(j)];
-			others.clear();
-			for (int k = 0; k < n; ++k)
-				if (k != j && boxes[size_t(k)].intersects(boxes[size_t(j)]))
-					others.push_back(k);
-			const double area = ellipsoidSurfaceArea(e);
-			const int count = std::max(options.minSamplesPerEllipsoid,
-									   int(std::ceil(area / (options.sampleSpacing * options.sampleSpacing))));
-			const double rProd = e.radii.prod();
-			const double solidAngle = 4.0 * M_PI / double(count);
-			for (int i = 0; i < count; ++i)
-			{
-				// Spherical Fibonacci point u (equal solid angle each), mapped to x = c + R diag(r) u. The area
-				// element of that map is r1 r2 r3 |diag(1/r) u| per unit solid angle (exact).
-				const double zc = 1.0 - (2.0 * i + 1.0) / double(count);
-				const double rho = std::sqrt(std::max(0.0, 1.0 - zc * zc));
-				const double phi = kGolden * double(i);
-				const Eigen::Vector3d u(rho * std::cos(phi), rho * std::sin(phi), zc);
-				const double weight = solidAngle * rProd * u.cwiseQuotient(e.radii).norm();
-				const Eigen::Vector3d x = e.toWorld(u.cwiseProduct(e.radii));
-				++q.totalSamples;
-				bool covered = false;
-				for (int k : others)
-					if (ellipsoids[size_t(k)].zeta(x) < 1.0 - 1e-9)
-					{
-						covered = true;
-						break;
-					}
-				if (covered)
-					continue;
-				++q.exposedSamples;
-				exposedArea += weight;
-				if (ref.insideTest().isInside(x))
-				{
-					insideBodyArea += weight;
-					continue;
-				}
-				const double d = ref.distanceGrid().distance(x);
-				++q.airGapSamples;
-				gapWeight.emplace_back(d, weight);
-				gapSum += d * weight;
-				weightSum += weight;
-				q.airGapMax = std::max(q.airGapMax, d);
-			}
-		}
-		q.exposedArea = exposedArea;
-		q.unionInsideBodyFraction = exposedArea > 0.0 ? insideBodyArea / exposedArea : 0.0;
-		q.airGapMean = weightSum > 0.0 ? gapSum / weightSum : 0.0;
-		q.airGapP95 = weightedQuantile(std::move(gapWeight), 0.95);
+		boxes.reserve(e.size());
+		for (const Ellipsoid& el : e)
+			boxes.push_back(el.aabb());
 	}
 
-	// ---- skin outside the union
-	const TriMesh& mesh = ref.mesh();
+	int size() const { return int(ellipsoids.size()); }
+
+	/// p is inside (or within `tolerance` in zeta of) some ellipsoid.
+	bool covers(const Eigen::Vector3d& p, double tolerance) const
+	{
+		for (size_t j = 0; j < ellipsoids.size(); ++j)
+			if (boxes[j].contains(p) && ellipsoids[j].zeta(p) <= 1.0 + tolerance)
+				return true;
+		return false;
+	}
+
+	/// The distance from p, outside every ellipsoid, to the union: the least distance to one of them. Box distances
+	/// are lower bounds, so the ellipsoids are visited nearest box first until the next box is no nearer than the
+	/// best found. `order` is scratch.
+	double distanceFromOutside(const Eigen::Vector3d& p, std::vector<std::pair<double, int>>& order) const
+	{
+		order.resize(ellipsoids.size());
+		for (int j = 0; j < size(); ++j)
+			order[size_t(j)] = {boxDistanceSquared(boxes[size_t(j)], p), j};
+		std::sort(order.begin(), order.end());
+		double best = std::numeric_limits<double>::infinity();
+		for (const auto& [bound2, j] : order)
+		{
+			if (bound2 >= best * best)
+				break;
+			best = std::min(best, std::abs(closestSurfacePoint(ellipsoids[size_t(j)], p).signedDistance));
+		}
+		return best;
+	}
+};
+
+/// Air gap: area-weighted samples on the exposed union surface (inside no other ellipsoid), measured to the skin
+/// where they lie outside the body.
+void measureAirGap(const FitQualityReference& ref, const EllipsoidUnion& U, const FitQualityOptions& options,
+				   FitQuality& q)
+{
+	constexpr double kGolden = 2.399963229728653; // pi (3 - sqrt 5)
+	std::vector<std::pair<double, double>> gapWeight;
+	double exposedArea = 0.0, insideBodyArea = 0.0, gapSum = 0.0, weightSum = 0.0;
+	std::vector<int> others;
+	for (int j = 0; j < U.size(); ++j)
+	{
+		const Ellipsoid& e = U.ellipsoids[size_t(j)];
+		others.clear();
+		for (int k = 0; k < U.size(); ++k)
+			if (k != j && U.boxes[size_t(k)].intersects(U.boxes[size_t(j)]))
+				others.push_back(k);
+		const double area = ellipsoidSurfaceArea(e);
+		const int count = std::max(options.minSamplesPerEllipsoid,
+								   int(std::ceil(area / (options.sampleSpacing * options.sampleSpacing))));
+		const double rProd = e.radii.prod();
+		const double solidAngle = 4.0 * M_PI / double(count);
+		for (int i = 0; i < count; ++i)
+		{
+			// Spherical Fibonacci point u (equal solid angle each), mapped to x = c + R diag(r) u. The area
+			// element of that map is r1 r2 r3 |diag(1/r) u| per unit solid angle (exact).
+			const double zc = 1.0 - (2.0 * i + 1.0) / double(count);
+			const double rho = std::sqrt(std::max(0.0, 1.0 - zc * zc));
+			const double phi = kGolden * double(i);
+			const Eigen::Vector3d u(rho * std::cos(phi), rho * std::sin(phi), zc);
+			const double weight = solidAngle * rProd * u.cwiseQuotient(e.radii).norm();
+			const Eigen::Vector3d x = e.toWorld(u.cwiseProduct(e.radii));
+			++q.totalSamples;
+			const bool covered = std::any_of(others.begin(), others.end(), [&](int k) {
+				return U.ellipsoids[size_t(k)].zeta(x) < 1.0 - 1e-9;
+			});
+			if (covered)
+				continue;
+			++q.exposedSamples;
+			exposedArea += weight;
+			if (ref.insideTest().isInside(x))
+			{
+				insideBodyArea += weight;
+				continue;
+			}
+			const double d = ref.distanceGrid().distance(x);
+			++q.airGapSamples;
+			gapWeight.emplace_back(d, weight);
+			gapSum += d * weight;
+			weightSum += weight;
+			q.airGapMax = std::max(q.airGapMax, d);
+		}
+	}
+	q.exposedArea = exposedArea;
+	q.unionInsideBodyFraction = exposedArea > 0.0 ? insideBodyArea / exposedArea : 0.0;
+	q.airGapMean = weightSum > 0.0 ? gapSum / weightSum : 0.0;
+	q.airGapP95 = weightedQuantile(std::move(gapWeight), 0.95);
+}
+
+/// Skin outside the union, at the mesh's vertices: how many, how far.
+void measureSkinVerticesOutside(const TriMesh& mesh, const EllipsoidUnion& U, const FitQualityOptions& options,
+								FitQuality& q)
+{
+	std::vector<std::pair<double, int>> order;
+	double sum = 0.0;
+	for (int v = 0; v < mesh.V.rows(); ++v)
+	{
+		const Eigen::Vector3d p = mesh.V.row(v).transpose();
+		if (U.covers(p, options.outsideTolerance))
+			continue;
+		const double d = U.distanceFromOutside(p, order);
+		++q.skinOutsideVertices;
+		sum += d;
+		q.skinOutsideMax = std::max(q.skinOutsideMax, d);
+	}
+	q.skinOutsideFraction = mesh.V.rows() > 0 ? double(q.skinOutsideVertices) / double(mesh.V.rows()) : 0.0;
+	q.skinOutsideMean = q.skinOutsideVertices > 0 ? sum / double(q.skinOutsideVertices) : 0.0;
+}
+
+/// Skin outside the union over the whole surface: a barycentric grid on every triangle, its longest edge cut into
+/// pieces no longer than options.skinSurfaceSpacing (> 0).
+void measureSkinSurfaceOutside(const TriMesh& mesh, const EllipsoidUnion& U, const FitQualityOptions& options,
+							   FitQuality& q)
+{
+	std::vector<std::pair<double, int>> order;
+	for (int f = 0; f < mesh.F.rows(); ++f)
+	{
+		const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)), c = mesh.V.row(mesh.F(f, 2));
+		const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+		const int level = std::clamp(int(std::ceil(longest / options.skinSurfaceSpacing)), 1, 1000);
+		for (int i = 0; i <= level; ++i)
+			for (int k = 0; i + k <= level; ++k)
+			{
+				const Eigen::Vector3d p = (double(i) * a + double(k) * b + double(level - i - k) * c) / double(level);
+				++q.skinSurfaceSamples;
+				if (U.covers(p, options.outsideTolerance))
+					continue;
+				++q.skinSurfaceOutside;
+				q.skinSurfaceOutsideMax = std::max(q.skinSurfaceOutsideMax, U.distanceFromOutside(p, order));
+			}
+	}
+}
+
+/// The reference's voxel lattice, for the IoU: voxel (x, y, z) has its centre at origin + (x + 0.5, y + 0.5, z + 0.5)
+/// h; body[i] = 1 where that centre is inside the body, x fastest.
+struct BodyVoxels
+{
+	Eigen::Vector3d origin;
+	double h;
+	const int* dims;
+	const std::vector<unsigned char>& body;
+	long long bodyCount;
+};
+
+/// Voxel IoU of the union and the body on the body's lattice (union voxels beyond the lattice count too: they are
+/// never body).
+void measureVoxelIoU(const BodyVoxels& lattice, const EllipsoidUnion& U, FitQuality& q)
+{
+	const double h = lattice.h;
+	const int* dims = lattice.dims;
+	std::vector<unsigned char> unionMark(lattice.body.size(), 0);
+	std::unordered_set<long long> outsideBox; // union voxels beyond the mesh box (never body)
+	for (int j = 0; j < U.size(); ++j)
+	{
+		const Ellipsoid& e = U.ellipsoids[size_t(j)];
+		int lo[3], hi[3];
+		for (int k = 0; k < 3; ++k)
+		{
+			// voxel i has its centre at origin + (i + 0.5) h
+			lo[k] = int(std::ceil((U.boxes[size_t(j)].min()[k] - lattice.origin[k]) / h - 0.5));
+			hi[k] = int(std::floor((U.boxes[size_t(j)].max()[k] - lattice.origin[k]) / h - 0.5));
+		}
+		for (int z = lo[2]; z <= hi[2]; ++z)
+			for (int y = lo[1]; y <= hi[1]; ++y)
+				for (int x = lo[0]; x <= hi[0]; ++x)
+				{
+					const Eigen::Vector3d p = lattice.origin + h * Eigen::Vector3d(x + 0.5, y + 0.5, z + 0.5);
+					if (e.zeta(p) > 1.0)
+						continue;
+					if (x >= 0 && y >= 0 && z >= 0 && x < dims[0] && y < dims[1] && z < dims[2])
+						unionMark[(size_t(z) * size_t(dims[1]) + size_t(y)) * size_t(dims[0]) + size_t(x)] = 1;
+					else
+					{
+						// unique key for lattice coordinates within +-2^20 of the origin
+						const long long key = ((long long)(z + (1 << 20)) << 42) | ((long long)(y + (1 << 20)) << 21) |
+											  (long long)(x + (1 << 20));
+						outsideBox.insert(key);
+					}
+				}
+	}
+	long long unionCount = (long long)outsideBox.size(), inter = 0;
+	for (size_t i = 0; i < unionMark.size(); ++i)
+	{
+		unionCount += unionMark[i];
+		inter += unionMark[i] & lattice.body[i];
+	}
+	q.voxelSize = h;
+	q.unionVoxels = unionCount;
+	q.bodyVoxels = lattice.bodyCount;
+	q.intersectionVoxels = inter;
+	const long long uni = unionCount + lattice.bodyCount - inter;
+	q.voxelIoU = uni > 0 ? double(inter) / double(uni) : 0.0;
+}
+
+} // namespace
+
+FitQuality measureFitQuality(const FitQualityReference& ref, const std::vector<Ellipsoid>& ellipsoids,
+							 const FitQualityOptions& options)
+{
+	const auto t0 = std::chrono::steady_clock::now();
+	validateQualityInput(ellipsoids, options);
+	const EllipsoidUnion U(ellipsoids);
+	FitQuality q;
+	q.ellipsoidCount = U.size();
+	if (options.computeAirGap)
+		measureAirGap(ref, U, options, q);
 	if (options.computeSkinOutside)
 	{
-		std::vector<std::pair<double, int>> order(static_cast<size_t>(n));
-		double sum = 0.0;
-		for (int v = 0; v < mesh.V.rows(); ++v)
-		{
-			const Eigen::Vector3d p = mesh.V.row(v).transpose();
-			bool outside = true;
-			for (int j = 0; j < n && outside; ++j)
-				if (boxes[size_t(j)].contains(p) && ellipsoids[size_t(j)].zeta(p) <= 1.0 + options.outsideTolerance)
-					outside = false;
-			if (!outside)
-				continue;
-			// Distance to the union = min over ellipsoids of the distance to each (p is outside all of them).
-			// Box distances are lower bounds: visit the ellipsoids nearest box first and stop early.
-			for (int j = 0; j < n; ++j)
-				order[size_t(j)] = {boxDistanceSquared(boxes[size_t(j)], p), j};
-			std::sort(order.begin(), order.end());
-			double best = std::numeric_limits<double>::infinity();
-			for (const auto& [bound2, j] : order)
-			{
-				if (bound2 >= best * best)
-					break;
-				best = std::min(best, std::abs(closestSurfacePoint(ellipsoids[size_t(j)], p).signedDistance));
-			}
-			++q.skinOutsideVertices;
-			sum += best;
-			q.skinOutsideMax = std::max(q.skinOutsideMax, best);
-		}
-		q.skinOutsideFraction = mesh.V.rows() > 0 ? double(q.skinOutsideVertices) / double(mesh.V.rows()) : 0.0;
-		q.skinOutsideMean = q.skinOutsideVertices > 0 ? sum / double(q.skinOutsideVertices) : 0.0;
-
-		// The whole skin surface: a barycentric grid on every triangle.
+		measureSkinVerticesOutside(ref.mesh(), U, options, q);
 		if (options.skinSurfaceSpacing > 0.0)
-			for (int f = 0; f < mesh.F.rows(); ++f)
-			{
-				const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)), b = mesh.V.row(mesh.F(f, 1)),
-									  c = mesh.V.row(mesh.F(f, 2));
-				const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-				const int level = std::clamp(int(std::ceil(longest / options.skinSurfaceSpacing)), 1, 1000);
-				for (int i = 0; i <= level; ++i)
-					for (int k = 0; i + k <= level; ++k)
-					{
-						const Eigen::Vector3d p =
-							(double(i) * a + double(k) * b + double(level - i - k) * c) / double(level);
-						++q.skinSurfaceSamples;
-						bool outside = true;
-						for (int j = 0; j < n && outside; ++j)
-							if (boxes[size_t(j)].contains(p) &&
-								ellipsoids[size_t(j)].zeta(p) <= 1.0 + options.outsideTolerance)
-								outside = false;
-						if (!outside)
-							continue;
-						double best = std::numeric_limits<double>::infinity();
-						for (int j = 0; j < n; ++j)
-							if (boxDistanceSquared(boxes[size_t(j)], p) < best * best)
-								best = std::min(best, std::abs(closestSurfacePoint(ellipsoids[size_t(j)], p).signedDistance));
-						++q.skinSurfaceOutside;
-						q.skinSurfaceOutsideMax = std::max(q.skinSurfaceOutsideMax, best);
-					}
-			}
+			measureSkinSurfaceOutside(ref.mesh(), U, options, q);
 		q.skinSurfaceOutsideFraction =
 			q.skinSurfaceSamples > 0 ? double(q.skinSurfaceOutside) / double(q.skinSurfaceSamples) : 0.0;
 	}
-
-	// ---- voxel IoU on the reference lattice
 	if (options.computeIoU && ref.resolution_ > 0)
-	{
-		const double h = ref.voxel_;
-		const int* dims = ref.dims_;
-		std::vector<unsigned char> unionMark(ref.body_.size(), 0);
-		std::unordered_set<long long> outsideBox; // union voxels beyond the mesh box (never body)
-		for (int j = 0; j < n; ++j)
-		{
-			const Ellipsoid& e = ellipsoids[size_t(j)];
-			int lo[3], hi[3];
-			for (int k = 0; k < 3; ++k)
-			{
-				// voxel i has its centre at origin + (i + 0.5) h
-				lo[k] = int(std::ceil((boxes[size_t(j)].min()[k] - ref.origin_[k]) / h - 0.5));
-				hi[k] = int(std::floor((boxes[size_t(j)].max()[k] - ref.origin_[k]) / h - 0.5));
-			}
-			for (int z = lo[2]; z <= hi[2]; ++z)
-				for (int y = lo[1]; y <= hi[1]; ++y)
-					for (int x = lo[0]; x <= hi[0]; ++x)
-					{
-						const Eigen::Vector3d p = ref.origin_ + h * Eigen::Vector3d(x + 0.5, y + 0.5, z + 0.5);
-						if (e.zeta(p) > 1.0)
-							continue;
-						if (x >= 0 && y >= 0 && z >= 0 && x < dims[0] && y < dims[1] && z < dims[2])
-							unionMark[(size_t(z) * size_t(dims[1]) + size_t(y)) * size_t(dims[0]) + size_t(x)] = 1;
-						else
-						{
-							// unique key for lattice coordinates within +-2^20 of the origin
-							const long long key = ((long long)(z + (1 << 20)) << 42) |
-												  ((long long)(y + (1 << 20)) << 21) | (long long)(x + (1 << 20));
-							outsideBox.insert(key);
-						}
-					}
-		}
-		long long unionCount = (long long)outsideBox.size(), inter = 0;
-		for (size_t i = 0; i < unionMark.size(); ++i)
-		{
-			unionCount += unionMark[i];
-			inter += unionMark[i] & ref.body_[i];
-		}
-		q.voxelSize = h;
-		q.unionVoxels = unionCount;
-		q.bodyVoxels = ref.bodyVoxelCount_;
-		q.intersectionVoxels = inter;
-		const long long uni = unionCount + ref.bodyVoxelCount_ - inter;
-		q.voxelIoU = uni > 0 ? double(inter) / double(uni) : 0.0;
-	}
-
+		measureVoxelIoU(BodyVoxels{ref.origin_, ref.voxel_, ref.dims_, ref.body_, ref.bodyVoxelCount_}, U, q);
 	q.milliseconds = elapsedMs(t0);
 	return q;
 }

@@ -258,19 +258,15 @@ std::vector<int> connectedComponents(const TriMesh& mesh, int* count)
 	return id;
 }
 
-LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const std::string& name)
+namespace
 {
-	const std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+
+/// The input's problems that no repair can fix: a bad scale, no vertices or faces, a non-finite coordinate, a face
+/// index out of range.
+void checkRepairable(const TriMesh& input, const LoadOptions& options, const std::string& name)
+{
 	if (!(options.scale > 0.0) || !std::isfinite(options.scale))
 		throw InvalidInputError(name + ": scale must be a positive finite number");
-	LoadedMesh out;
-	MeshReport& r = out.report;
-	r.path = name;
-	r.fileVertices = int(input.V.rows());
-	r.fileFaces = int(input.F.rows());
-	r.up = options.up;
-	r.scale = options.scale;
-
 	if (input.V.rows() == 0 || input.F.rows() == 0)
 		throw InvalidInputError(name + ": mesh is empty (" + std::to_string(input.V.rows()) + " vertices, " +
 			std::to_string(input.F.rows()) + " faces)");
@@ -279,22 +275,28 @@ LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const st
 			throw InvalidInputError(name + ": vertex " + std::to_string(i) + " has a non-finite coordinate");
 	if (input.F.minCoeff() < 0 || input.F.maxCoeff() >= input.V.rows())
 		throw InvalidInputError(name + ": face index out of range");
+}
 
-	// Units and up axis: explicit options only, never guessed.
-	Eigen::MatrixX3d V = input.V * options.scale;
+/// The vertices in metres, +y up: units and up axis from the explicit options only, never guessed.
+Eigen::MatrixX3d toMetresYUp(const Eigen::MatrixX3d& V, const LoadOptions& options)
+{
+	Eigen::MatrixX3d out = V * options.scale;
 	if (options.up == UpAxis::Z)
 	{
 		// (x, y, z) -> (x, z, -y): +z becomes +y, right-handed.
-		Eigen::MatrixX3d W(V.rows(), 3);
-		W.col(0) = V.col(0);
-		W.col(1) = V.col(2);
-		W.col(2) = -V.col(1);
-		V = W;
+		Eigen::MatrixX3d W(out.rows(), 3);
+		W.col(0) = out.col(0);
+		W.col(1) = out.col(2);
+		W.col(2) = -out.col(1);
+		out = W;
 	}
+	return out;
+}
 
-	// Weld: hash points on a grid of cell size tol, compare against the 27 neighbouring cells.
-	const double diag = bboxDiagonal(V);
-	const double tol = std::max(options.relativeWeldTolerance * diag, 1e-12);
+/// Welds the vertices within `tol` of an earlier kept one (a hash grid of cell size tol, the 27 neighbouring cells
+/// searched): remap[i] is vertex i's index among the kept ones, whose original indices are returned in order.
+std::vector<int> weldVertices(const Eigen::MatrixX3d& V, double tol, std::vector<int>& remap)
+{
 	const Eigen::RowVector3d lo = V.colwise().minCoeff();
 	auto cellOf = [&](const Eigen::RowVector3d& p) {
 		const Eigen::RowVector3d c = ((p - lo) / tol).array().floor();
@@ -305,7 +307,7 @@ LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const st
 	};
 	std::unordered_map<uint64_t, std::vector<int>> grid;
 	grid.reserve(size_t(V.rows()) * 2);
-	std::vector<int> remap(V.rows());
+	remap.assign(size_t(V.rows()), 0);
 	std::vector<int> representatives;
 	for (int i = 0; i < V.rows(); ++i)
 	{
@@ -331,35 +333,64 @@ LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const st
 			representatives.push_back(i);
 			grid[key(c)].push_back(found);
 		}
-		remap[i] = found;
+		remap[size_t(i)] = found;
 	}
-	r.weldedVertices = int(V.rows()) - int(representatives.size());
+	return representatives;
+}
 
-	TriMesh welded;
-	welded.V.resize(Eigen::Index(representatives.size()), 3);
-	for (int j = 0; j < int(representatives.size()); ++j)
-		welded.V.row(j) = V.row(representatives[j]);
-
-	// Degenerate faces: repeated indices after welding, or (numerically) zero area.
-	const double minDoubleArea = 1e-14 * diag * diag;
+/// The input's faces on the welded vertices, without the degenerate ones (repeated indices after welding, or double
+/// area <= minDoubleArea), which are counted in *degenerate.
+std::vector<Eigen::Vector3i> nonDegenerateFaces(const Eigen::MatrixX3i& F, const std::vector<int>& remap,
+												const Eigen::MatrixX3d& welded, double minDoubleArea, int* degenerate)
+{
 	std::vector<Eigen::Vector3i> faces;
-	faces.reserve(size_t(input.F.rows()));
-	for (int f = 0; f < input.F.rows(); ++f)
+	faces.reserve(size_t(F.rows()));
+	for (int f = 0; f < F.rows(); ++f)
 	{
-		const Eigen::Vector3i t(remap[input.F(f, 0)], remap[input.F(f, 1)], remap[input.F(f, 2)]);
+		const Eigen::Vector3i t(remap[size_t(F(f, 0))], remap[size_t(F(f, 1))], remap[size_t(F(f, 2))]);
 		if (t.x() == t.y() || t.y() == t.z() || t.x() == t.z())
 		{
-			++r.degenerateFaces;
+			++*degenerate;
 			continue;
 		}
-		const Eigen::Vector3d a = welded.V.row(t.x()), b = welded.V.row(t.y()), c = welded.V.row(t.z());
+		const Eigen::Vector3d a = welded.row(t.x()), b = welded.row(t.y()), c = welded.row(t.z());
 		if ((b - a).cross(c - a).norm() <= minDoubleArea)
 		{
-			++r.degenerateFaces;
+			++*degenerate;
 			continue;
 		}
 		faces.push_back(t);
 	}
+	return faces;
+}
+
+} // namespace
+
+LoadedMesh repairMesh(const TriMesh& input, const LoadOptions& options, const std::string& name)
+{
+	const std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+	checkRepairable(input, options, name);
+	LoadedMesh out;
+	MeshReport& r = out.report;
+	r.path = name;
+	r.fileVertices = int(input.V.rows());
+	r.fileFaces = int(input.F.rows());
+	r.up = options.up;
+	r.scale = options.scale;
+
+	const Eigen::MatrixX3d V = toMetresYUp(input.V, options);
+	const double diag = bboxDiagonal(V);
+	std::vector<int> remap;
+	const std::vector<int> representatives =
+		weldVertices(V, std::max(options.relativeWeldTolerance * diag, 1e-12), remap);
+	r.weldedVertices = int(V.rows()) - int(representatives.size());
+	TriMesh welded;
+	welded.V.resize(Eigen::Index(representatives.size()), 3);
+	for (int j = 0; j < int(representatives.size()); ++j)
+		welded.V.row(j) = V.row(representatives[size_t(j)]);
+
+	const std::vector<Eigen::Vector3i> faces =
+		nonDegenerateFaces(input.F, remap, welded.V, 1e-14 * diag * diag, &r.degenerateFaces);
 	if (faces.empty())
 	{
 		const std::string stray = strayVertex(V);
