@@ -155,12 +155,174 @@ bool hasExtension(const std::string& path, const char* ext)
 	return e == ext;
 }
 
+/// What the command line asks for, every argument checked before any work is done.
+struct FitCommand
+{
+	std::string meshPath, outPath, exportPath, segmentsPath;
+	std::string skinPath; ///< the skin field's side file ("" with --no-skin-field)
+	bodyfit::SkinFieldOptions skinOptions;
+	bodyfit::FitPipelineOptions options;
+	std::string skinnedMesh; ///< --skinned-mesh NAME ("": the rig's largest skinned mesh)
+	bool rigRequested = false;
+};
+
+/// The output paths: well-formed, writable, and none of them the input or each other (checked before the load and
+/// the fit).
+void checkOutputs(const bodyfit_cli::Args& args, FitCommand& c)
+{
+	using bodyfit_cli::UsageError;
+	if (!args.has("-o"))
+		throw UsageError("missing -o OUT.json (see --help)");
+	c.outPath = args.value("-o");
+	if (c.outPath.empty())
+		throw UsageError("-o: empty file name");
+	c.exportPath = args.value("--export-mesh");
+	if (args.has("--export-mesh") && !hasExtension(c.exportPath, ".obj") && !hasExtension(c.exportPath, ".ply"))
+		throw UsageError("--export-mesh: \"" + c.exportPath + "\" must end in .obj or .ply");
+	c.segmentsPath = args.value("--segments");
+	if (args.has("--segments") && !hasExtension(c.segmentsPath, ".obj") && !hasExtension(c.segmentsPath, ".ply"))
+		throw UsageError("--segments: \"" + c.segmentsPath + "\" must end in .ply or .obj");
+	if (args.has("--no-segmentation") && args.has("--segments"))
+		throw UsageError("--segments needs the segmentation: drop --no-segmentation");
+	bodyfit_cli::requireWritableOutput(c.outPath, "-o");
+	if (args.has("--export-mesh"))
+		bodyfit_cli::requireWritableOutput(c.exportPath, "--export-mesh");
+	if (args.has("--segments"))
+		bodyfit_cli::requireWritableOutput(c.segmentsPath, "--segments");
+	c.skinPath = args.has("--no-skin-field") ? "" : bodyfit::skinFieldPathFor(c.outPath);
+	if (!c.skinPath.empty())
+		bodyfit_cli::requireWritableOutput(c.skinPath, "skin field (next to -o)");
+	bodyfit_cli::requireDistinctOutputs({{"-o", c.outPath},
+										 {"--export-mesh", c.exportPath},
+										 {"--segments", c.segmentsPath},
+										 {"skin field (next to -o)", c.skinPath}},
+										{{"input mesh", c.meshPath}});
+}
+
+/// The skin field's and the fit's settings.
+void readSettings(const bodyfit_cli::Args& args, FitCommand& c)
+{
+	using bodyfit_cli::UsageError;
+	if (args.has("--no-skin-field") && (args.has("--skin-voxel") || args.has("--skin-clamp")))
+		throw UsageError("--skin-voxel / --skin-clamp set the skin field: drop --no-skin-field");
+	c.skinOptions.voxel = args.number("--skin-voxel", c.skinOptions.voxel, 0.0005, 0.05);
+	c.skinOptions.clamp = args.number("--skin-clamp", c.skinOptions.clamp, 0.001, 0.1);
+	if (!(c.skinOptions.clamp >= 2.0 * c.skinOptions.voxel))
+		throw UsageError("--skin-clamp: " + std::to_string(c.skinOptions.clamp) + " m is less than 2 voxels (" +
+						 std::to_string(2.0 * c.skinOptions.voxel) + " m)");
+
+	bodyfit::FitPipelineOptions& options = c.options;
+	options.load.up = args.choice("--up", {"y", "z"}, "y") == "z" ? bodyfit::UpAxis::Z : bodyfit::UpAxis::Y;
+	options.load.scale = args.number("--scale", 1.0, 0.0, 1e9, /*open=*/true);
+	options.segment = !args.has("--no-segmentation");
+	options.fit.maxEllipsoids = args.integer("--max-ellipsoids", options.fit.maxEllipsoids, 1, 100000);
+	options.fit.coverTriangles = !args.has("--no-triangle-cover");
+	// Thresholds: fractions of the height, or metres with --absolute. Every length not given (the other
+	// threshold, sigma, the cover spacing) keeps its relative default; the pipeline converts all of them with H.
+	const bool absolute = args.has("--absolute");
+	const double huge = absolute ? 10.0 : 1.0; // a threshold >= the whole body (10 m, or 100% of H) is a typo
+	for (const auto& [flag, length] : {std::pair{"--mu-torso", &options.lengths.muTorso},
+									   std::pair{"--mu-limbs", &options.lengths.muLimbs}})
+		if (args.has(flag))
+			*length = {args.number(flag, 0.0, 0.0, huge, /*open=*/true), !absolute};
+	c.skinnedMesh = args.value("--skinned-mesh");
+	c.rigRequested = args.has("--skinned-mesh");
+}
+
+FitCommand parseFitCommand(const bodyfit_cli::Args& args)
+{
+	FitCommand c;
+	args.requirePositional(1, "MESH argument");
+	c.meshPath = args.positional()[0];
+	checkOutputs(args, c);
+	readSettings(args, c);
+	return c;
+}
+
+/// The fitted body, and its rig when the input is a rigged file (a skinned mesh): then its bind pose is fitted and
+/// the fit records the bone bindings (skinned_fit.h).
+struct FittedInput
+{
+	std::optional<bodyfit::Rig> rig;
+	bodyfit::FitPipelineResult result;
+};
+
+FittedInput fitInput(const FitCommand& c)
+{
+	FittedInput in;
+	if (c.rigRequested || bodyfit::hasSkinnedMesh(c.meshPath))
+	{
+		const auto t0 = std::chrono::steady_clock::now();
+		in.rig = bodyfit::loadRig(c.meshPath, {c.options.load, c.skinnedMesh, /*requireAnimation=*/false});
+		const double loadMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+		bodyfit::LoadedMesh bind{in.rig->bindMesh, in.rig->bindMesh, bodyfit::analyzeComponents(in.rig->bindMesh),
+								 in.rig->report};
+		in.result = bodyfit::fitLoadedMesh(std::move(bind), c.options,
+										   std::filesystem::path(c.meshPath).filename().string(), loadMs);
+		const auto tBind = std::chrono::steady_clock::now();
+		bodyfit::BodyFit& fit = in.result.fit;
+		fit.skinning = std::make_shared<const bodyfit::SkinBinding>(bodyfit::bindSkin(*in.rig, fit));
+		fit.setTiming("skinning.bind",
+					  std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tBind).count());
+	}
+	else
+		in.result = bodyfit::fitMeshFile(c.meshPath, c.options);
+	return in;
+}
+
+/// The fit file (with the skin field beside it), the ellipsoid mesh and the segmentation preview, as asked.
+void writeOutputs(const FitCommand& c, const bodyfit::FitPipelineResult& result)
+{
+	bodyfit_cli::ensureParentDirectory(c.outPath);
+	bodyfit::writeEllipsoidJson(c.outPath, result.fit);
+	if (!c.exportPath.empty())
+	{
+		bodyfit_cli::ensureParentDirectory(c.exportPath);
+		bodyfit::exportEllipsoidMesh(c.exportPath, result.fit.ellipsoids);
+	}
+	if (!c.segmentsPath.empty())
+	{
+		bodyfit_cli::ensureParentDirectory(c.segmentsPath);
+		Eigen::MatrixX3d colors;
+		const bodyfit::TriMesh preview = bodyfit::segmentationPreview(result.loaded.mesh, result.segmentation, &colors);
+		bodyfit::saveTriMesh(c.segmentsPath, preview, &colors);
+	}
+}
+
+/// The warnings of the fit and of the load (what loading joined, kept or ignored of a body of several meshes, or
+/// found far from the origin: mesh_io.h; the pipeline also puts these lines into the fit's warnings), on stderr.
+void printWarnings(const bodyfit::FitPipelineResult& result)
+{
+	if (result.fallback)
+		std::cerr << "bodyfit-fit: warning: " << result.fit.warnings.front() << "\n";
+	for (const std::string& w : result.loaded.report.warnings)
+		std::cerr << "bodyfit-fit: warning: " << w << "\n";
+}
+
+/// The summary on stdout: the load, the fit, the outputs, the skin field and the rig.
+void printReport(const FitCommand& c, const FittedInput& in)
+{
+	const bodyfit::FitPipelineResult& result = in.result;
+	const std::string regionSummary =
+		!c.options.segment ? "whole mesh as one region (--no-segmentation)"
+		: result.fallback  ? "whole mesh as one region (segmentation failed)"
+						   : std::to_string(bodyfit::kBodyRegionCount) + " body regions (segmentation)";
+	std::string extraOutputs = c.exportPath;
+	if (!c.segmentsPath.empty())
+		extraOutputs += (extraOutputs.empty() ? "" : ", ") + c.segmentsPath;
+	printSummary(result.loaded, result.fit, regionSummary, c.outPath, extraOutputs);
+	printSkinField(result.fit, c.outPath, "--no-skin-field");
+	if (in.rig)
+		std::cout << "  skinning  rig with " << in.rig->boneCount() << " bones, " << in.rig->clips.size()
+				  << " clip(s): bind pose fitted, " << result.fit.skinning->vertexPoints + result.fit.skinning->coverPoints
+				  << " skin points bound to the ellipsoids (" << ms(result.fit.timingMs("skinning.bind")) << ")\n";
+}
+
 } // namespace
 
 int main(int argc, char** argv)
 {
 	return bodyfit_cli::runMain("bodyfit-fit", [&] {
-		using bodyfit_cli::UsageError;
 		const bodyfit_cli::Args args(argc, argv,
 									 {{"-o", true, "OUT.json"},
 									  {"--mu-torso", true, "R"},
@@ -182,127 +344,13 @@ int main(int argc, char** argv)
 			std::cout << kUsage;
 			return bodyfit_cli::kExitOk;
 		}
-
-		// Arguments: everything is checked before any work is done.
-		args.requirePositional(1, "MESH argument");
-		const std::string meshPath = args.positional()[0];
-		if (!args.has("-o"))
-			throw UsageError("missing -o OUT.json (see --help)");
-		const std::string outPath = args.value("-o");
-		if (outPath.empty())
-			throw UsageError("-o: empty file name");
-		const std::string exportPath = args.value("--export-mesh");
-		if (args.has("--export-mesh") && !hasExtension(exportPath, ".obj") && !hasExtension(exportPath, ".ply"))
-			throw UsageError("--export-mesh: \"" + exportPath + "\" must end in .obj or .ply");
-		const std::string segmentsPath = args.value("--segments");
-		if (args.has("--segments") && !hasExtension(segmentsPath, ".obj") && !hasExtension(segmentsPath, ".ply"))
-			throw UsageError("--segments: \"" + segmentsPath + "\" must end in .ply or .obj");
-		if (args.has("--no-segmentation") && args.has("--segments"))
-			throw UsageError("--segments needs the segmentation: drop --no-segmentation");
-		// Outputs: writable, and none of them the input or each other (checked before the load and the fit).
-		bodyfit_cli::requireWritableOutput(outPath, "-o");
-		if (args.has("--export-mesh"))
-			bodyfit_cli::requireWritableOutput(exportPath, "--export-mesh");
-		if (args.has("--segments"))
-			bodyfit_cli::requireWritableOutput(segmentsPath, "--segments");
-		const std::string skinPath = args.has("--no-skin-field") ? "" : bodyfit::skinFieldPathFor(outPath);
-		if (!skinPath.empty())
-			bodyfit_cli::requireWritableOutput(skinPath, "skin field (next to -o)");
-		bodyfit_cli::requireDistinctOutputs({{"-o", outPath},
-											 {"--export-mesh", exportPath},
-											 {"--segments", segmentsPath},
-											 {"skin field (next to -o)", skinPath}},
-											{{"input mesh", meshPath}});
-
-		const bool skinField = !args.has("--no-skin-field");
-		if (!skinField && (args.has("--skin-voxel") || args.has("--skin-clamp")))
-			throw UsageError("--skin-voxel / --skin-clamp set the skin field: drop --no-skin-field");
-		bodyfit::SkinFieldOptions skinOptions;
-		skinOptions.voxel = args.number("--skin-voxel", skinOptions.voxel, 0.0005, 0.05);
-		skinOptions.clamp = args.number("--skin-clamp", skinOptions.clamp, 0.001, 0.1);
-		if (!(skinOptions.clamp >= 2.0 * skinOptions.voxel))
-			throw UsageError("--skin-clamp: " + std::to_string(skinOptions.clamp) + " m is less than 2 voxels (" +
-							 std::to_string(2.0 * skinOptions.voxel) + " m)");
-
-		bodyfit::FitPipelineOptions options;
-		options.load.up = args.choice("--up", {"y", "z"}, "y") == "z" ? bodyfit::UpAxis::Z : bodyfit::UpAxis::Y;
-		options.load.scale = args.number("--scale", 1.0, 0.0, 1e9, /*open=*/true);
-		options.segment = !args.has("--no-segmentation");
-		options.fit.maxEllipsoids = args.integer("--max-ellipsoids", options.fit.maxEllipsoids, 1, 100000);
-		options.fit.coverTriangles = !args.has("--no-triangle-cover");
-		// Thresholds: fractions of the height, or metres with --absolute. Every length not given (the other
-		// threshold, sigma, the cover spacing) keeps its relative default; the pipeline converts all of them with H.
-		const bool absolute = args.has("--absolute");
-		const double huge = absolute ? 10.0 : 1.0; // a threshold >= the whole body (10 m, or 100% of H) is a typo
-		for (const auto& [flag, length] : {std::pair{"--mu-torso", &options.lengths.muTorso},
-										   std::pair{"--mu-limbs", &options.lengths.muLimbs}})
-			if (args.has(flag))
-				*length = {args.number(flag, 0.0, 0.0, huge, /*open=*/true), !absolute};
-
-		// A rigged file (a skinned mesh): fit its bind pose and record the bone bindings (skinned_fit.h).
-		std::optional<bodyfit::Rig> rig;
-		bodyfit::FitPipelineResult result;
-		if (args.has("--skinned-mesh") || bodyfit::hasSkinnedMesh(meshPath))
-		{
-			const auto t0 = std::chrono::steady_clock::now();
-			rig = bodyfit::loadRig(meshPath, {options.load, args.value("--skinned-mesh"), /*requireAnimation=*/false});
-			const double loadMs =
-				std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-			bodyfit::LoadedMesh bind{rig->bindMesh, rig->bindMesh, bodyfit::analyzeComponents(rig->bindMesh),
-									 rig->report};
-			result = bodyfit::fitLoadedMesh(std::move(bind), options,
-											std::filesystem::path(meshPath).filename().string(), loadMs);
-		}
-		else
-			result = bodyfit::fitMeshFile(meshPath, options);
-		bodyfit::BodyFit& fit = result.fit;
-		const bodyfit::TriMesh& mesh = result.loaded.mesh;
-		const std::string regionSummary =
-			!options.segment ? "whole mesh as one region (--no-segmentation)"
-			: result.fallback ? "whole mesh as one region (segmentation failed)"
-							  : std::to_string(bodyfit::kBodyRegionCount) + " body regions (segmentation)";
-		if (result.fallback)
-			std::cerr << "bodyfit-fit: warning: " << fit.warnings.front() << "\n";
-		// What loading joined, kept or ignored of a body of several meshes, or found far from the origin (mesh_io.h);
-		// the pipeline also puts these lines into the fit's warnings.
-		for (const std::string& w : result.loaded.report.warnings)
-			std::cerr << "bodyfit-fit: warning: " << w << "\n";
-
-		if (rig)
-		{
-			const auto tBind = std::chrono::steady_clock::now();
-			fit.skinning = std::make_shared<const bodyfit::SkinBinding>(bodyfit::bindSkin(*rig, fit));
-			const auto bindTime = std::chrono::steady_clock::now() - tBind;
-			fit.setTiming("skinning.bind", std::chrono::duration<double, std::milli>(bindTime).count());
-		}
-
-		if (skinField)
-			bakeSkinField(mesh, skinOptions, fit); // a rig's bind mesh with the bind-pose fit
-
-		// Outputs.
-		bodyfit_cli::ensureParentDirectory(outPath);
-		bodyfit::writeEllipsoidJson(outPath, fit);
-		if (!exportPath.empty())
-		{
-			bodyfit_cli::ensureParentDirectory(exportPath);
-			bodyfit::exportEllipsoidMesh(exportPath, fit.ellipsoids);
-		}
-		if (!segmentsPath.empty())
-		{
-			bodyfit_cli::ensureParentDirectory(segmentsPath);
-			Eigen::MatrixX3d colors;
-			const bodyfit::TriMesh preview = bodyfit::segmentationPreview(mesh, result.segmentation, &colors);
-			bodyfit::saveTriMesh(segmentsPath, preview, &colors);
-		}
-		std::string extraOutputs = exportPath;
-		if (!segmentsPath.empty())
-			extraOutputs += (extraOutputs.empty() ? "" : ", ") + segmentsPath;
-		printSummary(result.loaded, fit, regionSummary, outPath, extraOutputs);
-		printSkinField(fit, outPath, "--no-skin-field");
-		if (rig)
-			std::cout << "  skinning  rig with " << rig->boneCount() << " bones, " << rig->clips.size()
-					  << " clip(s): bind pose fitted, " << fit.skinning->vertexPoints + fit.skinning->coverPoints
-					  << " skin points bound to the ellipsoids (" << ms(fit.timingMs("skinning.bind")) << ")\n";
+		const FitCommand command = parseFitCommand(args);
+		FittedInput in = fitInput(command);
+		printWarnings(in.result);
+		if (!command.skinPath.empty())
+			bakeSkinField(in.result.loaded.mesh, command.skinOptions, in.result.fit); // a rig's: its bind mesh
+		writeOutputs(command, in.result);
+		printReport(command, in);
 		return bodyfit_cli::kExitOk;
 	});
 }
