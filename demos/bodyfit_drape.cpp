@@ -346,6 +346,109 @@ void writePicture(const Args& args, const bodyfit::drape::Scene& scene, const bo
 #endif
 }
 
+/// The scene file with the command line's overrides (collider, surface, skin mesh, edge lift, what to show), the
+/// extra input files checked, and the outputs checked (requireOutputs).
+bodyfit::drape::Scene sceneWithOverrides(const Args& args)
+{
+	using namespace bodyfit;
+	using namespace bodyfit::drape;
+	Scene scene = loadScene(args.scene);
+	if (!args.collider.empty())
+		scene.collider.kind = colliderKindFromString(args.collider);
+	if (!args.surface.empty() && args.surface != "tight" && args.surface != "ellipsoids")
+		throw InvalidInputError("--surface: '" + args.surface + "' is not one of tight, ellipsoids");
+	if (!args.surface.empty())
+		scene.collider.tightSurface = args.surface == "tight";
+	if (args.skinMesh)
+		scene.collider.skinMesh = true;
+	if (args.noLiftEdges)
+		scene.collider.liftEdges = false;
+	if (!args.show.empty())
+		scene.render.showEllipsoids = args.show == "ellipsoids";
+	for (const std::string* p : {&args.body, &args.ellipsoids})
+		if (!p->empty() && !inputFileProblem(*p).empty())
+			throw InvalidInputError(*p + ": cannot open file: " + inputFileProblem(*p));
+	requireOutputs(args, scene);
+	return scene;
+}
+
+/// The scene's body (or --body / --ellipsoids), its load and fit warnings on stderr.
+bodyfit::drape::BodyData loadBodyReporting(const Args& args, const bodyfit::drape::Scene& scene)
+{
+	std::cerr << "bodyfit-drape: loading body " << (args.body.empty() ? scene.body.mesh : args.body) << "\n";
+	bodyfit::drape::BodyData body = bodyfit::drape::loadBody(scene, args.body, args.ellipsoids);
+	for (const std::string& w : body.loadWarnings)
+		std::cerr << "bodyfit-drape: warning: mesh: " << w << "\n";
+	for (const std::string& w : body.fitWarnings) // the fit repeats the load warnings: print those once
+		if (std::find(body.loadWarnings.begin(), body.loadWarnings.end(), w) == body.loadWarnings.end())
+			std::cerr << "bodyfit-drape: warning: fit: " << w << "\n";
+	return body;
+}
+
+/// Runs the steps with progress on stderr, stops on a blow-up, writes the frames as they come, then the summary,
+/// the metrics and the picture. Returns the exit status.
+int runScene(const Args& args, const bodyfit::drape::Scene& scene, bodyfit::drape::DrapeSimulation& sim)
+{
+	using namespace bodyfit::drape;
+	const int steps = args.steps >= 0 ? args.steps : scene.solver.steps;
+	nlohmann::json frameIndex;
+	std::optional<GltfAnimationRecorder> gltf;
+	try
+	{
+		// Output directories are created as needed (e.g. --png out/skirt.png on a fresh checkout).
+		for (const std::string* p : {&args.metrics, &args.png})
+			if (!p->empty() && std::filesystem::path(*p).has_parent_path())
+				std::filesystem::create_directories(std::filesystem::path(*p).parent_path());
+		if (!args.frames.empty())
+		{
+			std::filesystem::create_directories(args.frames);
+			frameIndex["scene"] = scene.path;
+			frameIndex["frames"] = nlohmann::json::array();
+			gltf.emplace(gltfRecorder(sim));
+			writeFrame(args.frames, sim, frameIndex, *gltf);
+		}
+		std::cerr << "bodyfit-drape: " << scene.name << ", " << sim.nodeCount() << " cloth nodes, "
+				  << sim.colliderDescription() << "\n";
+		for (const std::string& w : sim.warnings()) // also in the metrics JSON ("warnings")
+			std::cerr << "bodyfit-drape: warning: " << w << "\n";
+		auto lastPrint = std::chrono::steady_clock::now() - std::chrono::seconds(1);
+		auto progress = [&](int done, int total, const StepStats& st) {
+			const auto now = std::chrono::steady_clock::now();
+			if (done != total && now - lastPrint < std::chrono::milliseconds(250))
+				return;
+			lastPrint = now;
+			std::fprintf(stderr, "\rstep %d/%d  t=%.3f s  %.2f ms/step (collision %.2f)   ", done, total, sim.time(),
+						 st.seconds * 1e3, st.collisionSeconds * 1e3);
+			if (done == total)
+				std::fprintf(stderr, "\n");
+		};
+		const BlowUpWatch watch(sim);
+		auto afterStep = [&](int k) {
+			const std::string blowUp = watch.check(sim);
+			if (!blowUp.empty()) // a run must not end with exit 0 and plausible metrics after NaN or a launch
+				throw BlownUp("the simulation blew up at step " + std::to_string(k) + ": " + blowUp);
+			if (!args.frames.empty() && (k % scene.frameEvery == 0 || k == steps))
+				writeFrame(args.frames, sim, frameIndex, *gltf);
+		};
+		nlohmann::json metrics = runAndMeasure(sim, steps, progress, afterStep);
+
+		printSummary(scene, sim, metrics, steps);
+		writeOutputs(args, sim, metrics, frameIndex, gltf);
+		writePicture(args, scene, sim);
+	}
+	catch (const BlownUp& e)
+	{
+		std::cerr << "\nbodyfit-drape: error: " << e.what() << "\n";
+		return 1;
+	}
+	catch (const std::exception& e)
+	{
+		std::cerr << "\nbodyfit-drape: " << e.what() << "\n";
+		return 1;
+	}
+	return 0;
+}
+
 } // namespace
 
 int main(int argc, char** argv)
@@ -359,30 +462,8 @@ int main(int argc, char** argv)
 	std::unique_ptr<DrapeSimulation> sim;
 	try
 	{
-		scene = loadScene(args.scene);
-		if (!args.collider.empty())
-			scene.collider.kind = colliderKindFromString(args.collider);
-		if (!args.surface.empty() && args.surface != "tight" && args.surface != "ellipsoids")
-			throw InvalidInputError("--surface: '" + args.surface + "' is not one of tight, ellipsoids");
-		if (!args.surface.empty())
-			scene.collider.tightSurface = args.surface == "tight";
-		if (args.skinMesh)
-			scene.collider.skinMesh = true;
-		if (args.noLiftEdges)
-			scene.collider.liftEdges = false;
-		if (!args.show.empty())
-			scene.render.showEllipsoids = args.show == "ellipsoids";
-		for (const std::string* p : {&args.body, &args.ellipsoids})
-			if (!p->empty() && !inputFileProblem(*p).empty())
-				throw InvalidInputError(*p + ": cannot open file: " + inputFileProblem(*p));
-		requireOutputs(args, scene);
-		std::cerr << "bodyfit-drape: loading body " << (args.body.empty() ? scene.body.mesh : args.body) << "\n";
-		body = loadBody(scene, args.body, args.ellipsoids);
-		for (const std::string& w : body.loadWarnings)
-			std::cerr << "bodyfit-drape: warning: mesh: " << w << "\n";
-		for (const std::string& w : body.fitWarnings) // the fit repeats the load warnings: print those once
-			if (std::find(body.loadWarnings.begin(), body.loadWarnings.end(), w) == body.loadWarnings.end())
-				std::cerr << "bodyfit-drape: warning: fit: " << w << "\n";
+		scene = sceneWithOverrides(args);
+		body = loadBodyReporting(args, scene);
 		sim = std::make_unique<DrapeSimulation>(scene, body);
 	}
 	catch (const bodyfit_cli::UsageError& e)
@@ -406,62 +487,5 @@ int main(int argc, char** argv)
 		std::cerr << "bodyfit-drape: internal error: " << e.what() << "\n";
 		return 1;
 	}
-
-	const int steps = args.steps >= 0 ? args.steps : scene.solver.steps;
-	nlohmann::json frameIndex;
-	std::optional<GltfAnimationRecorder> gltf;
-	try
-	{
-		// Output directories are created as needed (e.g. --png out/skirt.png on a fresh checkout).
-		for (const std::string* p : {&args.metrics, &args.png})
-			if (!p->empty() && std::filesystem::path(*p).has_parent_path())
-				std::filesystem::create_directories(std::filesystem::path(*p).parent_path());
-		if (!args.frames.empty())
-		{
-			std::filesystem::create_directories(args.frames);
-			frameIndex["scene"] = scene.path;
-			frameIndex["frames"] = nlohmann::json::array();
-			gltf.emplace(gltfRecorder(*sim));
-			writeFrame(args.frames, *sim, frameIndex, *gltf);
-		}
-		std::cerr << "bodyfit-drape: " << scene.name << ", " << sim->nodeCount() << " cloth nodes, "
-				  << sim->colliderDescription() << "\n";
-		for (const std::string& w : sim->warnings()) // also in the metrics JSON ("warnings")
-			std::cerr << "bodyfit-drape: warning: " << w << "\n";
-		auto lastPrint = std::chrono::steady_clock::now() - std::chrono::seconds(1);
-		auto progress = [&](int done, int total, const StepStats& st) {
-			const auto now = std::chrono::steady_clock::now();
-			if (done != total && now - lastPrint < std::chrono::milliseconds(250))
-				return;
-			lastPrint = now;
-			std::fprintf(stderr, "\rstep %d/%d  t=%.3f s  %.2f ms/step (collision %.2f)   ", done, total, sim->time(),
-						 st.seconds * 1e3, st.collisionSeconds * 1e3);
-			if (done == total)
-				std::fprintf(stderr, "\n");
-		};
-		const BlowUpWatch watch(*sim);
-		auto afterStep = [&](int k) {
-			const std::string blowUp = watch.check(*sim);
-			if (!blowUp.empty()) // a run must not end with exit 0 and plausible metrics after NaN or a launch
-				throw BlownUp("the simulation blew up at step " + std::to_string(k) + ": " + blowUp);
-			if (!args.frames.empty() && (k % scene.frameEvery == 0 || k == steps))
-				writeFrame(args.frames, *sim, frameIndex, *gltf);
-		};
-		nlohmann::json metrics = runAndMeasure(*sim, steps, progress, afterStep);
-
-		printSummary(scene, *sim, metrics, steps);
-		writeOutputs(args, *sim, metrics, frameIndex, gltf);
-		writePicture(args, scene, *sim);
-	}
-	catch (const BlownUp& e)
-	{
-		std::cerr << "\nbodyfit-drape: error: " << e.what() << "\n";
-		return 1;
-	}
-	catch (const std::exception& e)
-	{
-		std::cerr << "\nbodyfit-drape: " << e.what() << "\n";
-		return 1;
-	}
-	return 0;
+	return runScene(args, scene, *sim);
 }
