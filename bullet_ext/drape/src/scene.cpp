@@ -463,6 +463,97 @@ BodyMotionSpec parseBodyMotion(ObjectReader& r, double dt)
 	return m;
 }
 
+WindSpec parseWind(ObjectReader& r)
+{
+	WindSpec w;
+	w.velocity = r.vec3("velocity", w.velocity, -kMaxWindSpeed, kMaxWindSpeed);
+	w.turbulence = r.number("turbulence", w.turbulence, 0.0, kMaxTurbulence);
+	w.lengthScale = r.number("length_scale_m", w.lengthScale, 0.0, 100.0, true);
+	w.timeScale = r.number("time_scale_s", w.timeScale, 0.0, 1000.0, true);
+	w.octaves = r.integer("octaves", w.octaves, 1, 6);
+	w.seed = unsigned(r.integer("seed", int(w.seed), 0, 1 << 30));
+	w.drag = r.number("drag", w.drag, 0.0, kMaxAeroCoefficient);
+	return w;
+}
+
+AerodynamicsSpec parseAerodynamics(ObjectReader& r)
+{
+	AerodynamicsSpec a;
+	a.model = r.string("model", a.model,
+					   {"V_Point", "V_TwoSided", "V_TwoSidedLiftDrag", "V_OneSided", "F_TwoSided", "F_TwoSidedLiftDrag",
+						"F_OneSided"});
+	a.lift = r.number("lift", a.lift, 0.0, kMaxAeroCoefficient);
+	a.drag = r.number("drag", a.drag, 0.0, kMaxAeroCoefficient);
+	a.airDensity = r.number("air_density", a.airDensity, 0.0, kMaxAirDensity, true);
+	return a;
+}
+
+/// A pin: which nodes (corners or an edge of a patch, a top band, or listed indices) and what they hold to.
+PinSpec parsePin(ObjectReader& r, const Scene& scene)
+{
+	PinSpec p;
+	const std::string sel = r.requiredString("select", {"corners", "edge", "top", "indices"});
+	const bool patch = scene.garment.type == GarmentType::Patch || scene.garment.type == GarmentType::BulletPatch;
+	if ((sel == "corners" || sel == "edge") && !patch)
+		r.fail(r.keyPath("select"), "'" + sel + "' needs a patch garment");
+	if (sel == "corners")
+		p.select = PinSelect::Corners;
+	else if (sel == "edge")
+	{
+		p.select = PinSelect::Edge;
+		p.side = r.requiredString("side", {"-x", "+x", "-z", "+z"});
+	}
+	else if (sel == "top")
+	{
+		p.select = PinSelect::Top;
+		p.band = r.number("band_m", p.band, 0.0, 10.0);
+	}
+	else
+	{
+		p.select = PinSelect::Indices;
+		const json& idx = r.get("indices");
+		if (!idx.is_array() || idx.empty())
+			r.fail(r.keyPath("indices"), "expected a non-empty array of node indices");
+		for (std::size_t k = 0; k < idx.size(); ++k)
+			p.indices.push_back(r.checkInteger(idx[k], r.keyPath("indices") + "[" + std::to_string(k) + "]", 0, 1 << 30));
+	}
+	p.toBody = r.string("attach", "world", {"world", "body"}) == "body";
+	return p;
+}
+
+/// One effect object of the list, by its type, into scene.effects.
+void parseEffect(ObjectReader& r, const std::string& type, Scene& scene)
+{
+	EffectsSpec& e = scene.effects;
+	if (type == "gravity")
+	{
+		GravitySpec g;
+		g.acceleration = r.vec3("acceleration", g.acceleration, -100.0, 100.0); // 10 g
+		e.gravity = g;
+	}
+	else if (type == "wind")
+		e.wind = parseWind(r);
+	else if (type == "aerodynamics")
+		e.aerodynamics = parseAerodynamics(r);
+	else if (type == "friction")
+	{
+		FrictionSpec f;
+		f.coefficient = r.number("coefficient", f.coefficient, 0.0, 10.0);
+		e.friction = f;
+	}
+	else if (type == "self_collision")
+	{
+		SelfCollisionSpec s;
+		s.thickness = r.number("thickness_m", s.thickness, 0.0, 0.1, true);
+		s.stiffness = r.number("stiffness", s.stiffness, 0.0, 1.0, true);
+		e.selfCollision = s;
+	}
+	else if (type == "pin")
+		e.pin = parsePin(r, scene);
+	else
+		e.bodyMotion = parseBodyMotion(r, scene.solver.dt);
+}
+
 void parseEffects(const json& list, const std::string& where, Scene& scene, const std::string& file,
 				  const std::string& baseDir)
 {
@@ -471,92 +562,13 @@ void parseEffects(const json& list, const std::string& where, Scene& scene, cons
 	const std::vector<std::string> names = {"gravity", "wind",    "aerodynamics", "friction",
 											"self_collision", "pin", "body_motion"};
 	std::set<std::string> seen;
-	EffectsSpec& e = scene.effects;
 	for (std::size_t i = 0; i < list.size(); ++i)
 	{
 		ObjectReader r(list[i], where + "[" + std::to_string(i) + "]", file, baseDir);
 		const std::string type = r.requiredString("type", names);
 		if (!seen.insert(type).second)
 			r.fail(r.keyPath("type"), "effect '" + type + "' is listed twice");
-		if (type == "gravity")
-		{
-			GravitySpec g;
-			g.acceleration = r.vec3("acceleration", g.acceleration, -100.0, 100.0); // 10 g
-			e.gravity = g;
-		}
-		else if (type == "wind")
-		{
-			WindSpec w;
-			w.velocity = r.vec3("velocity", w.velocity, -kMaxWindSpeed, kMaxWindSpeed);
-			w.turbulence = r.number("turbulence", w.turbulence, 0.0, kMaxTurbulence);
-			w.lengthScale = r.number("length_scale_m", w.lengthScale, 0.0, 100.0, true);
-			w.timeScale = r.number("time_scale_s", w.timeScale, 0.0, 1000.0, true);
-			w.octaves = r.integer("octaves", w.octaves, 1, 6);
-			w.seed = unsigned(r.integer("seed", int(w.seed), 0, 1 << 30));
-			w.drag = r.number("drag", w.drag, 0.0, kMaxAeroCoefficient);
-			e.wind = w;
-		}
-		else if (type == "aerodynamics")
-		{
-			AerodynamicsSpec a;
-			a.model = r.string("model", a.model,
-							   {"V_Point", "V_TwoSided", "V_TwoSidedLiftDrag", "V_OneSided", "F_TwoSided",
-								"F_TwoSidedLiftDrag", "F_OneSided"});
-			a.lift = r.number("lift", a.lift, 0.0, kMaxAeroCoefficient);
-			a.drag = r.number("drag", a.drag, 0.0, kMaxAeroCoefficient);
-			a.airDensity = r.number("air_density", a.airDensity, 0.0, kMaxAirDensity, true);
-			e.aerodynamics = a;
-		}
-		else if (type == "friction")
-		{
-			FrictionSpec f;
-			f.coefficient = r.number("coefficient", f.coefficient, 0.0, 10.0);
-			e.friction = f;
-		}
-		else if (type == "self_collision")
-		{
-			SelfCollisionSpec s;
-			s.thickness = r.number("thickness_m", s.thickness, 0.0, 0.1, true);
-			s.stiffness = r.number("stiffness", s.stiffness, 0.0, 1.0, true);
-			e.selfCollision = s;
-		}
-		else if (type == "pin")
-		{
-			PinSpec p;
-			const std::string sel = r.requiredString("select", {"corners", "edge", "top", "indices"});
-			const bool patch =
-				scene.garment.type == GarmentType::Patch || scene.garment.type == GarmentType::BulletPatch;
-			if ((sel == "corners" || sel == "edge") && !patch)
-				r.fail(r.keyPath("select"), "'" + sel + "' needs a patch garment");
-			if (sel == "corners")
-				p.select = PinSelect::Corners;
-			else if (sel == "edge")
-			{
-				p.select = PinSelect::Edge;
-				p.side = r.requiredString("side", {"-x", "+x", "-z", "+z"});
-			}
-			else if (sel == "top")
-			{
-				p.select = PinSelect::Top;
-				p.band = r.number("band_m", p.band, 0.0, 10.0);
-			}
-			else
-			{
-				p.select = PinSelect::Indices;
-				const json& idx = r.get("indices");
-				if (!idx.is_array() || idx.empty())
-					r.fail(r.keyPath("indices"), "expected a non-empty array of node indices");
-				for (std::size_t k = 0; k < idx.size(); ++k)
-					p.indices.push_back(
-						r.checkInteger(idx[k], r.keyPath("indices") + "[" + std::to_string(k) + "]", 0, 1 << 30));
-			}
-			p.toBody = r.string("attach", "world", {"world", "body"}) == "body";
-			e.pin = p;
-		}
-		else
-		{
-			e.bodyMotion = parseBodyMotion(r, scene.solver.dt);
-		}
+		parseEffect(r, type, scene);
 		r.finish();
 	}
 }
