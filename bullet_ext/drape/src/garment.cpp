@@ -186,76 +186,73 @@ btSoftBody* buildCloth(btSoftBodyWorldInfo& worldInfo, const Scene& scene, Garme
 	return buildSoftBody(worldInfo, garment.mesh, scene.material, scene.solver);
 }
 
-btSoftBody* buildSoftBody(btSoftBodyWorldInfo& worldInfo, const TriMesh& mesh, const MaterialSpec& material,
-						  const SolverSpec& solver, SoftBodyBuildInfo* info)
+namespace
 {
-	btSoftBody* psb = new btSoftBody(&worldInfo);
-	// This constructor creates no material; appendNode gives every node m_materials[0], so create it first.
-	btSoftBody::Material* stretch = psb->appendMaterial();
-	stretch->m_kLST = btScalar(material.stretch);
-	stretch->m_kAST = btScalar(material.stretch);
-	stretch->m_kVST = 1;
-	stretch->m_flags = btSoftBody::fMaterial::Default;
-	// The margin must be set before appendNode: it sizes each node's leaf in the node tree.
-	psb->getCollisionShape()->setMargin(btScalar(material.margin));
-	psb->m_nodes.reserve(int(mesh.V.rows()));
-	for (int i = 0; i < mesh.V.rows(); ++i)
-		psb->appendNode(btVector3(btScalar(mesh.V(i, 0)), btScalar(mesh.V(i, 1)), btScalar(mesh.V(i, 2))), 1);
-	btSoftBody::Material* bend = nullptr;
-	if (material.bending > 0.0)
-	{
-		bend = psb->appendMaterial();
-		bend->m_kLST = btScalar(material.bending);
-		bend->m_kAST = btScalar(material.bending);
-		bend->m_kVST = 1;
-		bend->m_flags = btSoftBody::fMaterial::Default;
-	}
 
-	// Unique edges with the vertices opposite to them (-1 = none yet); two opposites = interior edge.
-	struct EdgeInfo
-	{
-		int a, b;
-		int opposite[2];
-	};
-	std::unordered_map<std::uint64_t, int> edgeIndex;
-	edgeIndex.reserve(std::size_t(mesh.F.rows()) * 2);
+/// A soft-body material of linear and area stiffness k (volume 1, default flags).
+btSoftBody::Material* appendStiffness(btSoftBody* psb, double k)
+{
+	btSoftBody::Material* m = psb->appendMaterial();
+	m->m_kLST = btScalar(k);
+	m->m_kAST = btScalar(k);
+	m->m_kVST = 1;
+	m->m_flags = btSoftBody::fMaterial::Default;
+	return m;
+}
+
+/// A mesh edge with the vertices opposite to it in its faces (-1 = none yet); two opposites: an interior edge.
+struct EdgeInfo
+{
+	int a, b;
+	int opposite[2];
+};
+
+/// The mesh's unique edges in the order faces first meet them, each with its key (edgeKey) in `keys`.
+std::vector<EdgeInfo> uniqueEdges(const TriMesh& mesh, std::unordered_map<std::uint64_t, int>& keys)
+{
+	keys.clear();
+	keys.reserve(std::size_t(mesh.F.rows()) * 2);
 	std::vector<EdgeInfo> edges;
 	edges.reserve(std::size_t(mesh.F.rows()) * 2);
 	for (int f = 0; f < mesh.F.rows(); ++f)
 		for (int k = 0; k < 3; ++k)
 		{
 			const int a = mesh.F(f, k), b = mesh.F(f, (k + 1) % 3), c = mesh.F(f, (k + 2) % 3);
-			auto [it, inserted] = edgeIndex.emplace(edgeKey(a, b), int(edges.size()));
+			auto [it, inserted] = keys.emplace(edgeKey(a, b), int(edges.size()));
 			if (inserted)
 				edges.push_back({a, b, {c, -1}});
-			else if (edges[it->second].opposite[1] < 0)
-				edges[it->second].opposite[1] = c;
+			else if (edges[std::size_t(it->second)].opposite[1] < 0)
+				edges[std::size_t(it->second)].opposite[1] = c;
 		}
-	psb->m_links.reserve(int(edges.size() * (bend ? 2 : 1)));
-	for (const EdgeInfo& e : edges)
-		psb->appendLink(e.a, e.b, stretch, false);
-	int bendingLinks = 0;
-	if (bend)
-	{
-		std::unordered_set<std::uint64_t> linked;
-		linked.reserve(edges.size() * 2);
-		for (const auto& kv : edgeIndex)
-			linked.insert(kv.first);
-		for (const EdgeInfo& e : edges)
-		{
-			if (e.opposite[1] < 0 || e.opposite[0] == e.opposite[1])
-				continue;
-			if (!linked.insert(edgeKey(e.opposite[0], e.opposite[1])).second)
-				continue;
-			psb->appendLink(e.opposite[0], e.opposite[1], bend, false);
-			psb->m_links[psb->m_links.size() - 1].m_bbending = 1;
-			++bendingLinks;
-		}
-	}
-	psb->m_faces.reserve(int(mesh.F.rows()));
-	for (int f = 0; f < mesh.F.rows(); ++f)
-		psb->appendFace(mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2), stretch);
+	return edges;
+}
 
+/// A bending link across every interior edge (between its two opposite vertices), unless those are already linked
+/// (by an edge or an earlier bending link). Returns how many were added.
+int appendBendingLinks(btSoftBody* psb, const std::vector<EdgeInfo>& edges,
+					   const std::unordered_map<std::uint64_t, int>& edgeKeys, btSoftBody::Material* bend)
+{
+	std::unordered_set<std::uint64_t> linked;
+	linked.reserve(edges.size() * 2);
+	for (const auto& kv : edgeKeys)
+		linked.insert(kv.first);
+	int added = 0;
+	for (const EdgeInfo& e : edges)
+	{
+		if (e.opposite[1] < 0 || e.opposite[0] == e.opposite[1])
+			continue;
+		if (!linked.insert(edgeKey(e.opposite[0], e.opposite[1])).second)
+			continue;
+		psb->appendLink(e.opposite[0], e.opposite[1], bend, false);
+		psb->m_links[psb->m_links.size() - 1].m_bbending = 1;
+		++added;
+	}
+	return added;
+}
+
+/// Mass, solver iterations, damping, no friction, SDF_RS collisions; the links shuffled and the normals updated.
+void configureSoftBody(btSoftBody* psb, const MaterialSpec& material, const SolverSpec& solver)
+{
 	psb->setTotalMass(btScalar(material.mass), true);
 	psb->m_cfg.piterations = solver.iterations;
 	psb->m_cfg.kDP = btScalar(material.damping);
@@ -264,6 +261,33 @@ btSoftBody* buildSoftBody(btSoftBodyWorldInfo& worldInfo, const TriMesh& mesh, c
 	// Deterministic (Bullet seeds its own generator) shuffle of link order: better Gauss-Seidel convergence.
 	psb->randomizeConstraints();
 	psb->updateNormals();
+}
+
+} // namespace
+
+btSoftBody* buildSoftBody(btSoftBodyWorldInfo& worldInfo, const TriMesh& mesh, const MaterialSpec& material,
+						  const SolverSpec& solver, SoftBodyBuildInfo* info)
+{
+	btSoftBody* psb = new btSoftBody(&worldInfo);
+	// This constructor creates no material; appendNode gives every node m_materials[0], so create it first.
+	btSoftBody::Material* stretch = appendStiffness(psb, material.stretch);
+	// The margin must be set before appendNode: it sizes each node's leaf in the node tree.
+	psb->getCollisionShape()->setMargin(btScalar(material.margin));
+	psb->m_nodes.reserve(int(mesh.V.rows()));
+	for (int i = 0; i < mesh.V.rows(); ++i)
+		psb->appendNode(btVector3(btScalar(mesh.V(i, 0)), btScalar(mesh.V(i, 1)), btScalar(mesh.V(i, 2))), 1);
+	btSoftBody::Material* bend = material.bending > 0.0 ? appendStiffness(psb, material.bending) : nullptr;
+
+	std::unordered_map<std::uint64_t, int> edgeKeys;
+	const std::vector<EdgeInfo> edges = uniqueEdges(mesh, edgeKeys);
+	psb->m_links.reserve(int(edges.size() * (bend ? 2 : 1)));
+	for (const EdgeInfo& e : edges)
+		psb->appendLink(e.a, e.b, stretch, false);
+	const int bendingLinks = bend ? appendBendingLinks(psb, edges, edgeKeys, bend) : 0;
+	psb->m_faces.reserve(int(mesh.F.rows()));
+	for (int f = 0; f < mesh.F.rows(); ++f)
+		psb->appendFace(mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2), stretch);
+	configureSoftBody(psb, material, solver);
 	if (info)
 	{
 		info->nodes = psb->m_nodes.size();
