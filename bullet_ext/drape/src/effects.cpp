@@ -229,85 +229,107 @@ SelfCollisionEffect::SelfCollisionEffect(const SelfCollisionSpec& spec, btSoftBo
 		std::sort(v.begin(), v.end());
 }
 
-void SelfCollisionEffect::beforeSubstep(double /*t*/, double dt)
+namespace
 {
-	++counters_.selfCollisionSubsteps;
-	btSoftBody& sb = *cloth_;
-	const int n = sb.m_nodes.size();
-	const double h = spec_.thickness;
-	// Search radius: thickness plus what two nodes can close in one substep at the current speeds (capped so the
-	// grid stays fine; faster pairs are caught over the following substeps).
+
+/// The key of grid cell (x, y, z): 21 bits per coordinate (wrapping: cells 2^21 apart share a key, which only costs
+/// a distance test).
+std::uint64_t cellKey(int x, int y, int z)
+{
+	return (std::uint64_t(std::uint32_t(x) & 0x1fffffu) << 42) | (std::uint64_t(std::uint32_t(y) & 0x1fffffu) << 21) |
+		   std::uint64_t(std::uint32_t(z) & 0x1fffffu);
+}
+
+/// The grid cell of p for cells of edge 1 / inv.
+void cellOf(const btVector3& p, double inv, int out[3])
+{
+	for (int d = 0; d < 3; ++d)
+		out[d] = int(std::floor(double(p[d]) * inv));
+}
+
+} // namespace
+
+double SelfCollisionEffect::searchRadius(double dt) const
+{
+	// Thickness plus what two nodes can close in one substep at the current speeds (capped so the grid stays fine;
+	// faster pairs are caught over the following substeps).
 	double maxSpeed = 0.0;
-	for (int i = 0; i < n; ++i)
-		maxSpeed = std::max(maxSpeed, double(sb.m_nodes[i].m_v.length()));
-	const double radius = h + std::min(2.0 * maxSpeed * dt, 4.0 * h);
-	const double inv = 1.0 / radius;
-	auto cellOf = [&](const btVector3& p, int out[3]) {
-		for (int d = 0; d < 3; ++d)
-			out[d] = int(std::floor(double(p[d]) * inv));
-	};
-	auto key = [](int x, int y, int z) {
-		return (std::uint64_t(std::uint32_t(x) & 0x1fffffu) << 42) | (std::uint64_t(std::uint32_t(y) & 0x1fffffu) << 21) |
-			   std::uint64_t(std::uint32_t(z) & 0x1fffffu);
-	};
-	keys_.resize(n);
+	for (int i = 0; i < cloth_->m_nodes.size(); ++i)
+		maxSpeed = std::max(maxSpeed, double(cloth_->m_nodes[i].m_v.length()));
+	return spec_.thickness + std::min(2.0 * maxSpeed * dt, 4.0 * spec_.thickness);
+}
+
+void SelfCollisionEffect::binNodes(double inv)
+{
+	const btSoftBody& sb = *cloth_;
+	const int n = sb.m_nodes.size();
+	keys_.resize(std::size_t(n));
 	for (int i = 0; i < n; ++i)
 	{
 		int c[3];
-		cellOf(sb.m_nodes[i].m_x, c);
-		keys_[i] = {key(c[0], c[1], c[2]), i};
+		cellOf(sb.m_nodes[i].m_x, inv, c);
+		keys_[std::size_t(i)] = {cellKey(c[0], c[1], c[2]), i};
 	}
 	std::sort(keys_.begin(), keys_.end());
-	std::unordered_map<std::uint64_t, std::pair<int, int>> ranges;
-	ranges.reserve(std::size_t(n));
+	cells_.clear();
+	cells_.reserve(std::size_t(n));
 	for (int s = 0; s < n;)
 	{
 		int e = s;
-		while (e < n && keys_[e].first == keys_[s].first)
+		while (e < n && keys_[std::size_t(e)].first == keys_[std::size_t(s)].first)
 			++e;
-		ranges.emplace(keys_[s].first, std::make_pair(s, e));
+		cells_.emplace(keys_[std::size_t(s)].first, std::make_pair(s, e));
 		s = e;
 	}
-	const double h2 = h * h;
-	for (int i = 0; i < n; ++i)
+}
+
+void SelfCollisionEffect::repel(int i, int j, double radius, double dt)
+{
+	btSoftBody::Node& a = cloth_->m_nodes[i];
+	btSoftBody::Node& b = cloth_->m_nodes[j];
+	const double h = spec_.thickness;
+	const btVector3 d = b.m_x - a.m_x;
+	const double dist = d.length();
+	if (dist >= radius || dist < 1e-12)
+		return;
+	++counters_.selfCollisionPairs;
+	if ((rest_[std::size_t(i)] - rest_[std::size_t(j)]).squaredNorm() < h * h)
+		return; // this close at rest: not a collision
+	if (std::binary_search(linked_[std::size_t(i)].begin(), linked_[std::size_t(i)].end(), j))
+		return;
+	const double imSum = double(a.m_im + b.m_im);
+	if (imSum <= 0.0)
+		return;
+	const btVector3 nrm = d / btScalar(dist);
+	const double predicted = dist + double((b.m_v - a.m_v).dot(nrm)) * dt;
+	if (predicted >= h)
+		return;
+	const double dv = spec_.stiffness * (h - predicted) / dt; // relative normal speed to add
+	a.m_v -= nrm * btScalar(dv * a.m_im / imSum);
+	b.m_v += nrm * btScalar(dv * b.m_im / imSum);
+	++counters_.selfCollisionImpulses;
+}
+
+void SelfCollisionEffect::beforeSubstep(double /*t*/, double dt)
+{
+	++counters_.selfCollisionSubsteps;
+	const double radius = searchRadius(dt);
+	const double inv = 1.0 / radius;
+	binNodes(inv);
+	for (int i = 0; i < cloth_->m_nodes.size(); ++i)
 	{
-		btSoftBody::Node& a = sb.m_nodes[i];
 		int c[3];
-		cellOf(a.m_x, c);
+		cellOf(cloth_->m_nodes[i].m_x, inv, c);
 		for (int dx = -1; dx <= 1; ++dx)
 			for (int dy = -1; dy <= 1; ++dy)
 				for (int dz = -1; dz <= 1; ++dz)
 				{
-					const auto it = ranges.find(key(c[0] + dx, c[1] + dy, c[2] + dz));
-					if (it == ranges.end())
+					const auto it = cells_.find(cellKey(c[0] + dx, c[1] + dy, c[2] + dz));
+					if (it == cells_.end())
 						continue;
 					for (int s = it->second.first; s < it->second.second; ++s)
-					{
-						const int j = keys_[s].second;
-						if (j <= i)
-							continue; // each pair once
-						btSoftBody::Node& b = sb.m_nodes[j];
-						const btVector3 d = b.m_x - a.m_x;
-						const double dist = d.length();
-						if (dist >= radius || dist < 1e-12)
-							continue;
-						++counters_.selfCollisionPairs;
-						if ((rest_[i] - rest_[j]).squaredNorm() < h2)
-							continue; // this close at rest: not a collision
-						if (std::binary_search(linked_[i].begin(), linked_[i].end(), j))
-							continue;
-						const double imSum = double(a.m_im + b.m_im);
-						if (imSum <= 0.0)
-							continue;
-						const btVector3 nrm = d / btScalar(dist);
-						const double predicted = dist + double((b.m_v - a.m_v).dot(nrm)) * dt;
-						if (predicted >= h)
-							continue;
-						const double dv = spec_.stiffness * (h - predicted) / dt; // relative normal speed to add
-						a.m_v -= nrm * btScalar(dv * a.m_im / imSum);
-						b.m_v += nrm * btScalar(dv * b.m_im / imSum);
-						++counters_.selfCollisionImpulses;
-					}
+						if (keys_[std::size_t(s)].second > i) // each pair once
+							repel(i, keys_[std::size_t(s)].second, radius, dt);
 				}
 	}
 }

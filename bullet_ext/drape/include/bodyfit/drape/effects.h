@@ -12,6 +12,7 @@
 
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 class btSoftBody;
@@ -107,12 +108,22 @@ public:
 	void beforeSubstep(double t, double dt) override;
 
 private:
+	/// The distance within which pairs are tested this substep.
+	double searchRadius(double dt) const;
+	/// keys_ (per node its cell key, sorted) and cells_ (per occupied cell its range of keys_), cells of edge 1 / inv.
+	void binNodes(double inv);
+	/// Nodes i and j closer than radius, not that close at rest nor linked, that would come within the thickness in
+	/// this substep: the relative normal speed that keeps them at the thickness, times the stiffness, shared by
+	/// inverse mass.
+	void repel(int i, int j, double radius, double dt);
+
 	SelfCollisionSpec spec_;
 	btSoftBody* cloth_;
 	EffectCounters& counters_;
 	std::vector<Eigen::Vector3d> rest_;
 	std::vector<std::vector<int>> linked_; ///< sorted neighbour lists (structural and bending links)
 	std::vector<std::pair<std::uint64_t, int>> keys_;
+	std::unordered_map<std::uint64_t, std::pair<int, int>> cells_;
 };
 
 /// The kinematic body follows a KeyframePath (its motion state is set to the pose at the end of each substep,
