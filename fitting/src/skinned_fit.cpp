@@ -33,6 +33,96 @@ Eigen::Vector3d positionOf(const BoundPoint& p, const Eigen::MatrixX3d& V)
 		   p.weight[2] * V.row(p.vertex[2]).transpose();
 }
 
+/// One face whose corners lie in different clusters, cut into a barycentric grid of `level` steps per side: each
+/// grid triangle (piece) goes to the first corner cluster whose ellipsoid contains it, else to the one it sticks out
+/// of least (ties: the lower index). A piece's corners are handed as bound points: a face corner as its vertex (where
+/// that vertex belongs to another cluster), a grid point once per cluster.
+struct CrossClusterFace
+{
+	const std::vector<Ellipsoid>& ellipsoids;
+	const std::vector<int>& owner;
+	std::array<int, 3> v;        ///< the face's vertices
+	std::array<int, 3> clusters; ///< its corners' clusters
+	Eigen::Vector3d a, b, d;     ///< its corners' positions
+	int level;
+	std::vector<char> added; ///< per (corner slot of the cluster, i, j): already handed
+
+	using Piece = std::array<std::array<int, 2>, 3>;
+
+	/// Grid point (i, j): weights i / level, j / level and the rest on the face's corners 0, 1, 2.
+	Eigen::Vector3d at(int i, int j) const
+	{
+		return (double(i) * a + double(j) * b + double(level - i - j) * d) / double(level);
+	}
+
+	/// True the first time grid point (i, j) is handed to cluster `id` (one of the corner clusters) in this face.
+	bool firstHandout(int id, int i, int j)
+	{
+		const std::size_t side = std::size_t(level + 1);
+		const std::size_t slot = id == clusters[0] ? 0 : id == clusters[1] ? 1 : 2;
+		char& seen = added[(slot * side + std::size_t(i)) * side + std::size_t(j)];
+		const bool first = seen == 0;
+		seen = 1;
+		return first;
+	}
+
+	/// The corner cluster a piece goes to.
+	int owningCluster(const Piece& piece) const
+	{
+		int best = -1;
+		double bestZeta = 0.0;
+		for (int id : clusters)
+		{
+			const Ellipsoid& e = ellipsoids[std::size_t(id)];
+			double z = 0.0;
+			for (const auto& ij : piece)
+				z = std::max(z, e.zeta(at(ij[0], ij[1])));
+			if (z <= kInside) // the first corner cluster that contains the piece
+				return id;
+			if (best < 0 || z < bestZeta || (z == bestZeta && id < best))
+			{
+				best = id;
+				bestZeta = z;
+			}
+		}
+		return best;
+	}
+
+	/// Hands the piece's corners to its cluster: face corners into extraVertices, grid points into grid.
+	void hand(const Piece& piece, std::vector<std::set<int>>& extraVertices, std::vector<std::vector<BoundPoint>>& grid)
+	{
+		const int best = owningCluster(piece);
+		for (const auto& ij : piece)
+		{
+			const int i = ij[0], j = ij[1], rest = level - i - j;
+			const int corner = i == level ? 0 : j == level ? 1 : rest == level ? 2 : -1;
+			if (corner >= 0)
+			{
+				const int vertex = v[std::size_t(corner)];
+				if (owner[std::size_t(vertex)] != best)
+					extraVertices[std::size_t(best)].insert(vertex);
+			}
+			else if (firstHandout(best, i, j))
+				grid[std::size_t(best)].push_back(
+					{v, {double(i) / double(level), double(j) / double(level), double(rest) / double(level)}});
+		}
+	}
+
+	/// Every piece of the face, row by row.
+	void handAll(std::vector<std::set<int>>& extraVertices, std::vector<std::vector<BoundPoint>>& grid)
+	{
+		const std::size_t side = std::size_t(level + 1);
+		added.assign(3 * side * side, 0);
+		for (int i = 0; i < level; ++i)
+			for (int j = 0; i + j < level; ++j)
+			{
+				hand({{{i, j}, {i + 1, j}, {i, j + 1}}}, extraVertices, grid);
+				if (i + j + 2 <= level)
+					hand({{{i + 1, j}, {i + 1, j + 1}, {i, j + 1}}}, extraVertices, grid);
+			}
+	}
+};
+
 /// Bound point sets P_j in the bind pose (skinned_fit.h): cluster vertices, then the corners of the cross-cluster
 /// triangle pieces handed to j (vertices not in j, then grid points inside triangles and on edges).
 std::vector<std::vector<BoundPoint>> bindPoints(const TriMesh& mesh, const std::vector<Ellipsoid>& ellipsoids,
@@ -45,68 +135,16 @@ std::vector<std::vector<BoundPoint>> bindPoints(const TriMesh& mesh, const std::
 			points[std::size_t(owner[std::size_t(v)])].push_back({{v, v, v}, {1.0, 0.0, 0.0}});
 	std::vector<std::set<int>> extraVertices(k);
 	std::vector<std::vector<BoundPoint>> grid(k);
-	std::vector<char> added; // per face: (corner slot of the ellipsoid, i, j) already handed, sized per face
+	CrossClusterFace face{ellipsoids, owner, {}, {}, {}, {}, {}, 0, {}};
 	for (int f = 0; f < mesh.faceCount(); ++f)
 	{
-		const std::array<int, 3> v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
-		std::array<int, 3> c{};
-		if (!crossesClusters(mesh, owner, f, c))
+		face.v = {mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
+		face.clusters = {};
+		if (!crossesClusters(mesh, owner, f, face.clusters))
 			continue;
-		const Eigen::Vector3d a = mesh.V.row(v[0]), b = mesh.V.row(v[1]), d = mesh.V.row(v[2]);
-		const int level = coverCutLevel(a, b, d, spacing);
-		auto at = [&](int i, int j) { return Eigen::Vector3d((double(i) * a + double(j) * b + double(level - i - j) * d) / double(level)); };
-		const std::size_t side = std::size_t(level + 1);
-		added.assign(3 * side * side, 0);
-		// True the first time grid point (i, j) is handed to ellipsoid `id` (one of the corner clusters c) in this face.
-		auto firstHandout = [&](int id, int i, int j) {
-			const std::size_t slot = id == c[0] ? 0 : id == c[1] ? 1 : 2;
-			char& seen = added[(slot * side + std::size_t(i)) * side + std::size_t(j)];
-			const bool first = seen == 0;
-			seen = 1;
-			return first;
-		};
-		auto hand = [&](const std::array<std::array<int, 2>, 3>& piece) {
-			int best = -1;
-			double bestZeta = 0.0;
-			for (int id : c)
-			{
-				const Ellipsoid& e = ellipsoids[std::size_t(id)];
-				double z = 0.0;
-				for (const auto& ij : piece)
-					z = std::max(z, e.zeta(at(ij[0], ij[1])));
-				if (z <= kInside) // the first corner cluster that contains the piece
-				{
-					best = id;
-					break;
-				}
-				if (best < 0 || z < bestZeta || (z == bestZeta && id < best))
-				{
-					best = id;
-					bestZeta = z;
-				}
-			}
-			for (const auto& ij : piece)
-			{
-				const int i = ij[0], j = ij[1], rest = level - i - j;
-				const int corner = i == level ? 0 : j == level ? 1 : rest == level ? 2 : -1;
-				if (corner >= 0)
-				{
-					const int vertex = v[std::size_t(corner)];
-					if (owner[std::size_t(vertex)] != best)
-						extraVertices[std::size_t(best)].insert(vertex);
-				}
-				else if (firstHandout(best, i, j))
-					grid[std::size_t(best)].push_back(
-						{v, {double(i) / double(level), double(j) / double(level), double(rest) / double(level)}});
-			}
-		};
-		for (int i = 0; i < level; ++i)
-			for (int j = 0; i + j < level; ++j)
-			{
-				hand({{{i, j}, {i + 1, j}, {i, j + 1}}});
-				if (i + j + 2 <= level)
-					hand({{{i + 1, j}, {i + 1, j + 1}, {i, j + 1}}});
-			}
+		face.a = mesh.V.row(face.v[0]), face.b = mesh.V.row(face.v[1]), face.d = mesh.V.row(face.v[2]);
+		face.level = coverCutLevel(face.a, face.b, face.d, spacing);
+		face.handAll(extraVertices, grid);
 	}
 	for (std::size_t j = 0; j < k; ++j)
 	{

@@ -1001,22 +1001,15 @@ nlohmann::json runJson(const DrapeSimulation& sim, int steps, const std::vector<
 	return j;
 }
 
-} // namespace
-
-nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::function<void(int, int, const StepStats&)>& progress,
-							 const std::function<void(int)>& afterStep)
+/// Per-step timings and the skinned body's node counts over a run.
+struct StepSeries
 {
-	const ClothSample start = sim.sample();
 	std::vector<double> stepMs, collisionMs, skinMs, writeMs;
-	std::vector<double> colliderCpuMs; // the ellipsoid collider alone, thread CPU (robust on a loaded machine)
+	std::vector<double> colliderCpuMs; ///< the ellipsoid collider alone, thread CPU (robust on a loaded machine)
 	long long boneFieldNodes = 0, boneFieldFallbacks = 0, skinMeshNodes = 0;
-	stepMs.reserve(std::size_t(steps));
-	collisionMs.reserve(std::size_t(steps));
-	SampleExtremes extremes;
-	ClothSample last = start;
-	for (int k = 1; k <= steps; ++k)
+
+	void add(const StepStats& st)
 	{
-		const StepStats st = sim.step();
 		stepMs.push_back(st.seconds * 1e3);
 		collisionMs.push_back(st.collisionSeconds * 1e3);
 		skinMs.push_back(st.bodySkinSeconds * 1e3);
@@ -1025,6 +1018,64 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 		boneFieldNodes += st.boneFieldNodes;
 		boneFieldFallbacks += st.boneFieldFallbacks;
 		skinMeshNodes += st.skinMeshNodes;
+	}
+};
+
+/// The contact rule before the collider's flags (issue 14): nodes near the union, kept so old numbers compare.
+void addNearUnionGap(const DrapeSimulation& sim, nlohmann::json& j)
+{
+	const metrics::ContactMetrics near = sim.contacts(sim.nearUnionOptions());
+	const auto gap = [&](double v) { return near.gap.count > 0 ? nlohmann::json(v) : nlohmann::json(nullptr); };
+	j["nodes_near_union"] = near.contactNodes;
+	j["mean_near_union_gap_m"] = gap(near.gap.mean);
+	j["p95_near_union_gap_m"] = gap(near.gap.p95);
+}
+
+/// Nodes inside the body and the ellipsoids, and NaN nodes: at the start and the worst sample.
+void addInsideCounts(const ClothSample& start, const SampleExtremes& extremes, nlohmann::json& j)
+{
+	const bool ellipsoids = start.insideEllipsoids >= 0;
+	j["nodes_inside_body_start"] = start.insideBody;
+	j["max_nodes_inside_body"] = extremes.maxInside;
+	j["max_nodes_inside_ellipsoids"] = ellipsoids ? nlohmann::json(extremes.maxInsideEllipsoids) : nlohmann::json(nullptr);
+	j["min_zeta_over_time"] = finiteOrNull(extremes.minZeta);
+	// Deepest node inside an ellipsoid over the samples: float32 node positions put a node on the surface only to
+	// ~1e-7 m, which for a 3 mm thin axis is zeta 1 - 7e-5; this distance is the unit-free check.
+	j["max_ellipsoid_penetration_m"] = ellipsoids ? nlohmann::json(extremes.maxDepth) : nlohmann::json(nullptr);
+	j["max_nan_nodes"] = extremes.maxNan;
+}
+
+/// An animated body: the clip, the body's per-step update costs, and where the tight surface decided.
+void addAnimation(const DrapeSimulation& sim, const btSkinnedBodyDriver& d, int steps, const StepSeries& series,
+				  nlohmann::json& j)
+{
+	const AnimationTiming& timing = d.timing();
+	j["animation"] = {{"file", sim.body().meshPath}, {"clip", d.clip().name}, {"speed", timing.speed},
+					  {"loop", timing.loop}, {"start_s", timing.startS}, {"clip_time_end_s", d.clipTime()},
+					  {"updates_per_step", sim.scene().solver.substeps}};
+	// Per step (every substep poses the body): pose + skinning + ellipsoids, and the write into the shape.
+	j["body_skin_ms_per_step_median"] = steps > 0 ? median(series.skinMs) : 0.0;
+	j["body_write_ms_per_step_median"] = steps > 0 ? median(series.writeMs) : 0.0;
+	if (sim.ellipsoidCollider() && sim.ellipsoidCollider()->getActiveSkinField())
+		j["bone_field"] = boneFieldJson(*sim.ellipsoidCollider(), d.body(), series.boneFieldNodes,
+										series.boneFieldFallbacks, series.skinMeshNodes);
+}
+
+} // namespace
+
+nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::function<void(int, int, const StepStats&)>& progress,
+							 const std::function<void(int)>& afterStep)
+{
+	const ClothSample start = sim.sample();
+	StepSeries series;
+	series.stepMs.reserve(std::size_t(steps));
+	series.collisionMs.reserve(std::size_t(steps));
+	SampleExtremes extremes;
+	ClothSample last = start;
+	for (int k = 1; k <= steps; ++k)
+	{
+		const StepStats st = sim.step();
+		series.add(st);
 		if (k % sim.scene().sampleEvery == 0 || k == steps)
 		{
 			last = sim.sample();
@@ -1035,42 +1086,16 @@ nlohmann::json runAndMeasure(DrapeSimulation& sim, int steps, const std::functio
 		if (progress)
 			progress(k, steps, st);
 	}
-	nlohmann::json j = runJson(sim, steps, stepMs, collisionMs);
+	nlohmann::json j = runJson(sim, steps, series.stepMs, series.collisionMs);
 	if (sim.ellipsoidCollider() && steps > 0)
-		j["collider_cpu_ns_per_node_step_median"] = median(colliderCpuMs) * 1e6 / std::max(1, sim.nodeCount());
+		j["collider_cpu_ns_per_node_step_median"] = median(series.colliderCpuMs) * 1e6 / std::max(1, sim.nodeCount());
 	// Links crossing the skin are measured once, on the final state (issue 14's goal: 0 at the bundled resolutions).
 	j.update(metrics::toJson(metrics::ClothMetrics{last, sim.contacts(), sim.edgeCrossings()}));
 	if (sim.scene().collider.kind == ColliderKind::Ellipsoids)
-	{
-		// The contact rule before the collider's flags (issue 14): nodes near the union, kept so old numbers compare.
-		const metrics::ContactMetrics near = sim.contacts(sim.nearUnionOptions());
-		const auto gap = [&](double v) { return near.gap.count > 0 ? nlohmann::json(v) : nlohmann::json(nullptr); };
-		j["nodes_near_union"] = near.contactNodes;
-		j["mean_near_union_gap_m"] = gap(near.gap.mean);
-		j["p95_near_union_gap_m"] = gap(near.gap.p95);
-	}
-	const bool ellipsoids = start.insideEllipsoids >= 0;
-	j["nodes_inside_body_start"] = start.insideBody;
-	j["max_nodes_inside_body"] = extremes.maxInside;
-	j["max_nodes_inside_ellipsoids"] = ellipsoids ? nlohmann::json(extremes.maxInsideEllipsoids) : nlohmann::json(nullptr);
-	j["min_zeta_over_time"] = finiteOrNull(extremes.minZeta);
-	// Deepest node inside an ellipsoid over the samples: float32 node positions put a node on the surface only to
-	// ~1e-7 m, which for a 3 mm thin axis is zeta 1 - 7e-5; this distance is the unit-free check.
-	j["max_ellipsoid_penetration_m"] = ellipsoids ? nlohmann::json(extremes.maxDepth) : nlohmann::json(nullptr);
-	j["max_nan_nodes"] = extremes.maxNan;
+		addNearUnionGap(sim, j);
+	addInsideCounts(start, extremes, j);
 	if (const btSkinnedBodyDriver* d = sim.skinnedDriver())
-	{
-		const AnimationTiming& timing = d->timing();
-		j["animation"] = {{"file", sim.body().meshPath}, {"clip", d->clip().name}, {"speed", timing.speed},
-						  {"loop", timing.loop}, {"start_s", timing.startS}, {"clip_time_end_s", d->clipTime()},
-						  {"updates_per_step", sim.scene().solver.substeps}};
-		// Per step (every substep poses the body): pose + skinning + ellipsoids, and the write into the shape.
-		j["body_skin_ms_per_step_median"] = steps > 0 ? median(skinMs) : 0.0;
-		j["body_write_ms_per_step_median"] = steps > 0 ? median(writeMs) : 0.0;
-		if (sim.ellipsoidCollider() && sim.ellipsoidCollider()->getActiveSkinField())
-			j["bone_field"] = boneFieldJson(*sim.ellipsoidCollider(), d->body(), boneFieldNodes, boneFieldFallbacks,
-											skinMeshNodes);
-	}
+		addAnimation(sim, *d, steps, series, j);
 	return j;
 }
 
