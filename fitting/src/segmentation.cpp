@@ -216,83 +216,110 @@ int deepestOnChord(const TriMesh& mesh, const std::vector<int>& path, int a, int
 	return best;
 }
 
+/// The connected pieces of the regions on the main component (mesh edges between vertices of one label), each with
+/// its vertices (in BFS order), label and surface area.
+struct LabelPieces
+{
+	std::vector<int> piece;   ///< per vertex, its piece (-1: not on the main component)
+	std::vector<int> members; ///< vertices of every piece, piece by piece
+	std::vector<int> begin, size;
+	std::vector<double> area;
+	std::vector<Region> label;
+
+	int count() const { return int(size.size()); }
+	const int* first(int id) const { return members.data() + begin[size_t(id)]; }
+	const int* last(int id) const { return first(id) + size[size_t(id)]; }
+
+	void find(const GeodesicSolver& graph, const std::vector<int>& component, const std::vector<double>& vertexArea,
+			  const std::vector<Region>& labels)
+	{
+		const int n = int(labels.size());
+		piece.assign(size_t(n), -1);
+		members.clear();
+		begin.clear();
+		size.clear();
+		area.clear();
+		label.clear();
+		for (int s = 0; s < n; ++s)
+		{
+			if (piece[size_t(s)] >= 0 || component[size_t(s)] != 0)
+				continue;
+			const int id = count();
+			const size_t start = members.size();
+			begin.push_back(int(start));
+			label.push_back(labels[size_t(s)]);
+			piece[size_t(s)] = id;
+			members.push_back(s);
+			for (size_t i = start; i < members.size(); ++i)
+			{
+				const auto [nb, ne] = graph.neighbors(members[i]);
+				for (const int* w = nb; w != ne; ++w)
+					if (graph.isMeshEdge(w) && piece[size_t(*w)] < 0 && labels[size_t(*w)] == labels[size_t(s)])
+					{
+						piece[size_t(*w)] = id;
+						members.push_back(*w);
+					}
+			}
+			size.push_back(int(members.size() - start));
+			double a = 0.0;
+			for (size_t i = start; i < members.size(); ++i)
+				a += vertexArea[size_t(members[i])];
+			area.push_back(a);
+		}
+	}
+
+	/// Per label, its largest piece by area (the first found wins a tie: lowest vertex index); -1 for none.
+	std::array<int, kBodyRegionCount + 1> largest() const
+	{
+		std::array<int, kBodyRegionCount + 1> keep;
+		keep.fill(-1);
+		for (int id = 0; id < count(); ++id)
+		{
+			int& k = keep[size_t(label[size_t(id)])];
+			if (k < 0 || area[size_t(id)] > area[size_t(k)])
+				k = id;
+		}
+		return keep;
+	}
+
+	/// The label most mesh-edge neighbours of piece `id` outside it carry (lowest region index on ties), -1 when it
+	/// has none on the main component.
+	int majorityAround(int id, const GeodesicSolver& graph, const std::vector<int>& component,
+					   const std::vector<Region>& labels) const
+	{
+		std::array<int, kBodyRegionCount + 1> votes{};
+		for (const int* v = first(id); v != last(id); ++v)
+		{
+			const auto [nb, ne] = graph.neighbors(*v);
+			for (const int* w = nb; w != ne; ++w)
+				if (graph.isMeshEdge(w) && piece[size_t(*w)] != id && component[size_t(*w)] == 0)
+					++votes[size_t(labels[size_t(*w)])];
+		}
+		const int winner = int(std::max_element(votes.begin(), votes.end()) - votes.begin());
+		return votes[size_t(winner)] == 0 ? -1 : winner;
+	}
+};
+
 /// Re-labels every connected piece of a region except its largest (by surface area, `area` per vertex: the answer
 /// does not depend on how finely a part is tessellated) with the label most of its neighbours outside the piece
 /// carry, until every region is one piece (or `maxPasses` is reached).
 void mergeStrayPieces(const GeodesicSolver& graph, const std::vector<int>& component, const std::vector<double>& area,
 	std::vector<Region>& labels, int maxPasses)
 {
-	const int n = int(labels.size());
-	std::vector<int> piece(static_cast<size_t>(n), -1);
-	std::vector<int> members; // vertices of every piece, piece by piece (BFS order)
-	std::vector<int> pieceBegin, pieceSize;
-	std::vector<double> pieceArea;
-	std::vector<Region> pieceLabel;
+	LabelPieces pieces;
 	for (int pass = 0; pass < maxPasses; ++pass)
 	{
-		std::fill(piece.begin(), piece.end(), -1);
-		members.clear();
-		pieceBegin.clear();
-		pieceSize.clear();
-		pieceArea.clear();
-		pieceLabel.clear();
-		for (int s = 0; s < n; ++s)
-		{
-			if (piece[size_t(s)] >= 0 || component[size_t(s)] != 0)
-				continue;
-			const int id = int(pieceSize.size());
-			const size_t begin = members.size();
-			pieceBegin.push_back(int(begin));
-			pieceLabel.push_back(labels[size_t(s)]);
-			piece[size_t(s)] = id;
-			members.push_back(s);
-			for (size_t i = begin; i < members.size(); ++i)
-			{
-				const auto [first, last] = graph.neighbors(members[i]);
-				for (const int* w = first; w != last; ++w)
-				{
-					if (graph.isMeshEdge(w) && piece[size_t(*w)] < 0 && labels[size_t(*w)] == labels[size_t(s)])
-					{
-						piece[size_t(*w)] = id;
-						members.push_back(*w);
-					}
-				}
-			}
-			pieceSize.push_back(int(members.size() - begin));
-			double a = 0.0;
-			for (size_t i = begin; i < members.size(); ++i)
-				a += area[size_t(members[i])];
-			pieceArea.push_back(a);
-		}
-		// Largest piece per label by area (the first found wins a tie: lowest vertex index).
-		std::array<int, kBodyRegionCount + 1> keep;
-		keep.fill(-1);
-		for (int id = 0; id < int(pieceSize.size()); ++id)
-		{
-			int& k = keep[size_t(pieceLabel[size_t(id)])];
-			if (k < 0 || pieceArea[size_t(id)] > pieceArea[size_t(k)])
-				k = id;
-		}
+		pieces.find(graph, component, area, labels);
+		const std::array<int, kBodyRegionCount + 1> keep = pieces.largest();
 		bool changed = false;
-		for (int id = 0; id < int(pieceSize.size()); ++id)
+		for (int id = 0; id < pieces.count(); ++id)
 		{
-			if (keep[size_t(pieceLabel[size_t(id)])] == id)
+			if (keep[size_t(pieces.label[size_t(id)])] == id)
 				continue;
-			// Majority label among the mesh-edge neighbours of the piece (lowest region index on ties).
-			std::array<int, kBodyRegionCount + 1> votes{};
-			const int* first = members.data() + pieceBegin[size_t(id)];
-			const int* last = first + pieceSize[size_t(id)];
-			for (const int* v = first; v != last; ++v)
-			{
-				const auto [nb, ne] = graph.neighbors(*v);
-				for (const int* w = nb; w != ne; ++w)
-					if (graph.isMeshEdge(w) && piece[size_t(*w)] != id && component[size_t(*w)] == 0)
-						++votes[size_t(labels[size_t(*w)])];
-			}
-			const int winner = int(std::max_element(votes.begin(), votes.end()) - votes.begin());
-			if (votes[size_t(winner)] == 0)
+			const int winner = pieces.majorityAround(id, graph, component, labels);
+			if (winner < 0)
 				continue;
-			for (const int* v = first; v != last; ++v)
+			for (const int* v = pieces.first(id); v != pieces.last(id); ++v)
 				labels[size_t(*v)] = Region(winner);
 			changed = true;
 		}
