@@ -43,57 +43,61 @@ MeshInsideTest::MeshInsideTest(const TriMesh& mesh) : V_(mesh.V), F_(mesh.F)
 	const Eigen::Vector3d extent = (boxMax_ - boxMin_).cwiseMax(1e-12);
 
 	for (int axis = 0; axis < 3; ++axis)
+		buildGrid(axis, extent);
+}
+
+void MeshInsideTest::cellRange(const AxisGrid& g, int f, int& u0, int& u1, int& v0, int& v1) const
+{
+	double minU = 1e300, maxU = -1e300, minV = 1e300, maxV = -1e300;
+	for (int k = 0; k < 3; ++k)
 	{
-		AxisGrid& g = grids_[axis];
-		g.axis = axis;
-		g.u = (axis + 1) % 3;
-		g.v = (axis + 2) % 3;
-		// Square cells, about kFacesPerCell projected triangles per cell on average.
-		const double area = extent[g.u] * extent[g.v];
-		const double cell = std::sqrt(area * kFacesPerCell / double(F_.rows()));
-		g.invCell = 1.0 / cell;
-		g.originU = boxMin_[g.u];
-		g.originV = boxMin_[g.v];
-		g.nu = std::clamp(int(extent[g.u] * g.invCell) + 1, 1, 4096);
-		g.nv = std::clamp(int(extent[g.v] * g.invCell) + 1, 1, 4096);
-		const int cells = g.nu * g.nv;
-		std::vector<int> count(size_t(cells) + 1, 0);
-		auto cellRange = [&](int f, int& u0, int& u1, int& v0, int& v1) {
-			double minU = 1e300, maxU = -1e300, minV = 1e300, maxV = -1e300;
-			for (int k = 0; k < 3; ++k)
-			{
-				const Eigen::Vector3d p = V_.row(F_(f, k)).transpose();
-				minU = std::min(minU, p[g.u]);
-				maxU = std::max(maxU, p[g.u]);
-				minV = std::min(minV, p[g.v]);
-				maxV = std::max(maxV, p[g.v]);
-			}
-			u0 = std::clamp(int((minU - g.originU) * g.invCell), 0, g.nu - 1);
-			u1 = std::clamp(int((maxU - g.originU) * g.invCell), 0, g.nu - 1);
-			v0 = std::clamp(int((minV - g.originV) * g.invCell), 0, g.nv - 1);
-			v1 = std::clamp(int((maxV - g.originV) * g.invCell), 0, g.nv - 1);
-		};
-		for (int f = 0; f < F_.rows(); ++f)
-		{
-			int u0, u1, v0, v1;
-			cellRange(f, u0, u1, v0, v1);
-			for (int v = v0; v <= v1; ++v)
-				for (int u = u0; u <= u1; ++u)
-					++count[size_t(v * g.nu + u) + 1];
-		}
-		for (int c = 0; c < cells; ++c)
-			count[size_t(c) + 1] += count[size_t(c)];
-		g.cellStart = count;
-		g.cellFaces.assign(size_t(count[size_t(cells)]), 0);
-		std::vector<int> cursor(count.begin(), count.end() - 1);
-		for (int f = 0; f < F_.rows(); ++f)
-		{
-			int u0, u1, v0, v1;
-			cellRange(f, u0, u1, v0, v1);
-			for (int v = v0; v <= v1; ++v)
-				for (int u = u0; u <= u1; ++u)
-					g.cellFaces[size_t(cursor[size_t(v * g.nu + u)]++)] = f;
-		}
+		const Eigen::Vector3d p = V_.row(F_(f, k)).transpose();
+		minU = std::min(minU, p[g.u]);
+		maxU = std::max(maxU, p[g.u]);
+		minV = std::min(minV, p[g.v]);
+		maxV = std::max(maxV, p[g.v]);
+	}
+	u0 = std::clamp(int((minU - g.originU) * g.invCell), 0, g.nu - 1);
+	u1 = std::clamp(int((maxU - g.originU) * g.invCell), 0, g.nu - 1);
+	v0 = std::clamp(int((minV - g.originV) * g.invCell), 0, g.nv - 1);
+	v1 = std::clamp(int((maxV - g.originV) * g.invCell), 0, g.nv - 1);
+}
+
+void MeshInsideTest::buildGrid(int axis, const Eigen::Vector3d& extent)
+{
+	AxisGrid& g = grids_[axis];
+	g.axis = axis;
+	g.u = (axis + 1) % 3;
+	g.v = (axis + 2) % 3;
+	const double area = extent[g.u] * extent[g.v];
+	const double cell = std::sqrt(area * kFacesPerCell / double(F_.rows()));
+	g.invCell = 1.0 / cell;
+	g.originU = boxMin_[g.u];
+	g.originV = boxMin_[g.v];
+	g.nu = std::clamp(int(extent[g.u] * g.invCell) + 1, 1, 4096);
+	g.nv = std::clamp(int(extent[g.v] * g.invCell) + 1, 1, 4096);
+	const int cells = g.nu * g.nv;
+	std::vector<int> count(size_t(cells) + 1, 0);
+	for (int f = 0; f < F_.rows(); ++f)
+	{
+		int u0, u1, v0, v1;
+		cellRange(g, f, u0, u1, v0, v1);
+		for (int v = v0; v <= v1; ++v)
+			for (int u = u0; u <= u1; ++u)
+				++count[size_t(v * g.nu + u) + 1];
+	}
+	for (int c = 0; c < cells; ++c)
+		count[size_t(c) + 1] += count[size_t(c)];
+	g.cellStart = count;
+	g.cellFaces.assign(size_t(count[size_t(cells)]), 0);
+	std::vector<int> cursor(count.begin(), count.end() - 1);
+	for (int f = 0; f < F_.rows(); ++f)
+	{
+		int u0, u1, v0, v1;
+		cellRange(g, f, u0, u1, v0, v1);
+		for (int v = v0; v <= v1; ++v)
+			for (int u = u0; u <= u1; ++u)
+				g.cellFaces[size_t(cursor[size_t(v * g.nu + u)]++)] = f;
 	}
 }
 

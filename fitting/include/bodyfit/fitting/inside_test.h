@@ -42,6 +42,12 @@ private:
 		std::vector<int> cellFaces;
 	};
 
+	/// The grid of the projections along `axis` (square cells, about kFacesPerCell projected triangles per cell on
+	/// average over the box's extent), each cell listing the faces whose projected box meets it.
+	void buildGrid(int axis, const Eigen::Vector3d& extent);
+	/// The cells [u0, u1] x [v0, v1] of grid g that face f's projected box meets.
+	void cellRange(const AxisGrid& g, int f, int& u0, int& u1, int& v0, int& v1) const;
+
 	Eigen::MatrixX3d V_;
 	Eigen::MatrixX3i F_;
 	std::vector<int> faceComponent_;
