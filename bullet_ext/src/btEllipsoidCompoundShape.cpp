@@ -449,6 +449,36 @@ btEllipsoidWorldCache::btEllipsoidWorldCache()
 	m_dims[0] = m_dims[1] = m_dims[2] = 0;
 }
 
+namespace
+{
+
+/// Ellipsoid e (body frame) placed by bodyTransform: its world entry, and the narrow phase's packed record {centre,
+/// 0, the columns of the whitening matrix each followed by 0} (kPackedStride floats at `packed`).
+void placeEntry(const btEllipsoidLocalData& e, const btTransform& bodyTransform, btEllipsoidWorldCache::Entry& w,
+				btScalar* packed)
+{
+	const btMatrix3x3 r = bodyTransform.getBasis() * e.m_basis;
+	const btVector3 invA(btScalar(1) / e.m_semiAxes.x(), btScalar(1) / e.m_semiAxes.y(), btScalar(1) / e.m_semiAxes.z());
+	w.m_center = bodyTransform * e.m_center;
+	w.m_unwhiten = r.scaled(e.m_semiAxes); // R diag(a)
+	w.m_whiten = r.transpose();           // then rows scaled by 1/a
+	w.m_whiten[0] *= invA.x();
+	w.m_whiten[1] *= invA.y();
+	w.m_whiten[2] *= invA.z();
+	const btVector3 extent(w.m_unwhiten[0].length(), w.m_unwhiten[1].length(), w.m_unwhiten[2].length());
+	w.m_aabbMin = w.m_center - extent;
+	w.m_aabbMax = w.m_center + extent;
+	for (int k = 0; k < 3; ++k)
+	{
+		packed[k] = w.m_center[k];
+		for (int j = 0; j < 3; ++j)
+			packed[4 + 4 * j + k] = w.m_whiten[k][j];
+	}
+	packed[3] = packed[7] = packed[11] = packed[15] = btScalar(0);
+}
+
+} // namespace
+
 bool btEllipsoidWorldCache::update(const btEllipsoidCompoundShape* shape, const btTransform& bodyTransform)
 {
 	const bool sameShape = shape == m_shape && shape && shape->getAnalyticRevision() == m_revision;
@@ -464,33 +494,12 @@ bool btEllipsoidWorldCache::update(const btEllipsoidCompoundShape* shape, const 
 	m_entries.resize(n);
 	m_boxes.resize(2 * n);
 	m_packed.resize(kPackedStride * btMax(n, 1));
-	const btMatrix3x3& bb = bodyTransform.getBasis();
 	for (int i = 0; i < n; ++i)
 	{
-		const btEllipsoidLocalData& e = shape->getEllipsoid(i);
 		Entry& w = m_entries[i];
-		const btMatrix3x3 r = bb * e.m_basis;
-		const btVector3 invA(btScalar(1) / e.m_semiAxes.x(), btScalar(1) / e.m_semiAxes.y(),
-							 btScalar(1) / e.m_semiAxes.z());
-		w.m_center = bodyTransform * e.m_center;
-		w.m_unwhiten = r.scaled(e.m_semiAxes); // R diag(a)
-		w.m_whiten = r.transpose();           // then rows scaled by 1/a
-		w.m_whiten[0] *= invA.x();
-		w.m_whiten[1] *= invA.y();
-		w.m_whiten[2] *= invA.z();
-		btVector3 extent(w.m_unwhiten[0].length(), w.m_unwhiten[1].length(), w.m_unwhiten[2].length());
-		w.m_aabbMin = w.m_center - extent;
-		w.m_aabbMax = w.m_center + extent;
+		placeEntry(shape->getEllipsoid(i), bodyTransform, w, &m_packed[kPackedStride * i]);
 		m_boxes[2 * i] = w.m_aabbMin;
 		m_boxes[2 * i + 1] = w.m_aabbMax;
-		btScalar* pk = &m_packed[kPackedStride * i];
-		for (int k = 0; k < 3; ++k)
-		{
-			pk[k] = w.m_center[k];
-			for (int j = 0; j < 3; ++j)
-				pk[4 + 4 * j + k] = w.m_whiten[k][j];
-		}
-		pk[3] = pk[7] = pk[11] = pk[15] = btScalar(0);
 		if (i == 0)
 		{
 			m_aabbMin = w.m_aabbMin;
