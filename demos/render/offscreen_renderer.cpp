@@ -111,6 +111,107 @@ void drawMesh(const DrawMesh& m, const Eigen::MatrixX3f& normals)
 
 } // namespace
 
+namespace
+{
+
+/// The rotation of a view: the world turned so the camera looks along -z. Front (0): camera on +z; side (1): camera
+/// on +x (world +x towards the viewer, a -90 degree turn about y). Both tilted down by `elevation` (radians) so
+/// horizontal cloth is not seen edge-on.
+Eigen::Matrix3d viewRotation(int view, double elevation)
+{
+	return Eigen::AngleAxisd(elevation, Eigen::Vector3d::UnitX()).toRotationMatrix() *
+		   Eigen::AngleAxisd(view == 0 ? 0.0 : -0.5 * M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix();
+}
+
+/// The box [lo, hi] of the meshes' finite vertices in a view's rotated frame (+-1 when there are none), its x and y
+/// replaced by the close-up square when options.zoomHalfSize > 0 (the depth range still holds every vertex).
+void frameView(const std::vector<DrawMesh>& meshes, const Eigen::Matrix3d& rotation, const RenderOptions& options,
+			   Eigen::Vector3d& lo, Eigen::Vector3d& hi)
+{
+	lo.setConstant(std::numeric_limits<double>::max());
+	hi = -lo;
+	bool any = false;
+	for (const DrawMesh& m : meshes)
+		for (int i = 0; i < m.V.rows(); ++i)
+		{
+			const Eigen::Vector3d p = m.V.row(i).transpose();
+			if (!p.allFinite())
+				continue;
+			const Eigen::Vector3d e = rotation * p;
+			lo = lo.cwiseMin(e);
+			hi = hi.cwiseMax(e);
+			any = true;
+		}
+	if (!any)
+	{
+		lo.setConstant(-1.0);
+		hi.setConstant(1.0);
+	}
+	if (options.zoomHalfSize > 0.0)
+	{
+		const Eigen::Vector3d c = rotation * options.zoomCenter;
+		for (int k = 0; k < 2; ++k)
+		{
+			lo[k] = c[k] - options.zoomHalfSize;
+			hi[k] = c[k] + options.zoomHalfSize;
+		}
+	}
+}
+
+/// Draws the meshes into one view's half of the buffer: an orthographic camera centred on the view's box, halfW x
+/// halfH metres across.
+void drawView(int view, int W, int H, const Eigen::Matrix3d& rotation, const Eigen::Vector3d& lo,
+			  const Eigen::Vector3d& hi, double halfW, double halfH, const std::vector<DrawMesh>& meshes,
+			  const std::vector<Eigen::MatrixX3f>& normals)
+{
+	const int x0 = view == 0 ? 0 : W / 2;
+	const Eigen::Vector3d c = 0.5 * (lo + hi);
+	const double depth = 0.5 * (hi.z() - lo.z()) + 1.0;
+	glViewport(x0, 0, view == 0 ? W / 2 : W - W / 2, H);
+	glMatrixMode(GL_PROJECTION);
+	glLoadIdentity();
+	glOrtho(c.x() - halfW, c.x() + halfW, c.y() - halfH, c.y() + halfH, -c.z() - depth, -c.z() + depth);
+	setupLights();
+	glMatrixMode(GL_MODELVIEW);
+	GLdouble m[16];
+	for (int col = 0; col < 4; ++col)
+		for (int row = 0; row < 4; ++row)
+			m[col * 4 + row] = (row < 3 && col < 3) ? rotation(row, col) : (row == col ? 1.0 : 0.0);
+	glLoadMatrixd(m);
+	for (std::size_t k = 0; k < meshes.size(); ++k)
+		drawMesh(meshes[k], normals[k]);
+}
+
+/// The W x H RGBA buffer (rows bottom-up, as GL writes them) box-filtered down by ss and flipped, with a thin grey
+/// rule between the two views.
+Image downsample(const std::vector<GLubyte>& buffer, int W, int H, int ss, const RenderOptions& options)
+{
+	Image image;
+	image.width = options.width;
+	image.height = options.height;
+	image.rgb.assign(std::size_t(image.width) * image.height * 3, 0);
+	for (int y = 0; y < image.height; ++y)
+		for (int x = 0; x < image.width; ++x)
+			for (int ch = 0; ch < 3; ++ch)
+			{
+				int sum = 0;
+				for (int dy = 0; dy < ss; ++dy)
+					for (int dx = 0; dx < ss; ++dx)
+					{
+						const int sy = H - 1 - (y * ss + dy);
+						sum += buffer[(std::size_t(sy) * W + (x * ss + dx)) * 4 + ch];
+					}
+				image.rgb[(std::size_t(y) * image.width + x) * 3 + ch] = std::uint8_t(sum / (ss * ss));
+			}
+	const int mid = image.width / 2;
+	for (int y = 0; y < image.height; ++y)
+		for (int ch = 0; ch < 3; ++ch)
+			image.rgb[(std::size_t(y) * image.width + mid) * 3 + ch] = 160;
+	return image;
+}
+
+} // namespace
+
 Image renderTwoViews(const std::vector<DrawMesh>& meshes, const RenderOptions& options)
 {
 	if (options.width < 2 || options.height < 1 || options.width > 8192 || options.height > 8192)
@@ -128,49 +229,14 @@ Image renderTwoViews(const std::vector<DrawMesh>& meshes, const RenderOptions& o
 		throw std::runtime_error("render: OSMesaMakeCurrent failed for " + std::to_string(W) + "x" +
 								 std::to_string(H));
 
-	// Views: rotate the world so the camera looks along -z. Front: camera on +z; side: camera on +x (world +x
-	// towards the viewer, i.e. a -90 degree turn about y). Both are tilted down by `elevationDeg` so horizontal
-	// cloth is not seen edge-on.
-	const double elev = options.elevationDeg * M_PI / 180.0;
 	Eigen::Matrix3d views[2];
-	for (int view = 0; view < 2; ++view)
-		views[view] = Eigen::AngleAxisd(elev, Eigen::Vector3d::UnitX()).toRotationMatrix() *
-					  Eigen::AngleAxisd(view == 0 ? 0.0 : -0.5 * M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix();
-
-	// Framing: one scale (pixels per metre) for both views so sizes compare across them.
 	Eigen::Vector3d lo[2], hi[2];
-	bool any = false;
 	for (int view = 0; view < 2; ++view)
 	{
-		lo[view].setConstant(std::numeric_limits<double>::max());
-		hi[view] = -lo[view];
-		for (const DrawMesh& m : meshes)
-			for (int i = 0; i < m.V.rows(); ++i)
-			{
-				const Eigen::Vector3d p = m.V.row(i).transpose();
-				if (!p.allFinite())
-					continue;
-				const Eigen::Vector3d e = views[view] * p;
-				lo[view] = lo[view].cwiseMin(e);
-				hi[view] = hi[view].cwiseMax(e);
-				any = true;
-			}
-		if (!any)
-		{
-			lo[view].setConstant(-1.0);
-			hi[view].setConstant(1.0);
-		}
-		if (options.zoomHalfSize > 0.0)
-		{
-			// The close-up square across the view; the depth range still holds every vertex.
-			const Eigen::Vector3d c = views[view] * options.zoomCenter;
-			for (int k = 0; k < 2; ++k)
-			{
-				lo[view][k] = c[k] - options.zoomHalfSize;
-				hi[view][k] = c[k] + options.zoomHalfSize;
-			}
-		}
+		views[view] = viewRotation(view, options.elevationDeg * M_PI / 180.0);
+		frameView(meshes, views[view], options, lo[view], hi[view]);
 	}
+	// Framing: one scale (pixels per metre) for both views so sizes compare across them.
 	const double viewW = 0.5 * W, viewH = H;
 	const double pad = std::clamp(options.paddingFraction, 0.0, 0.4);
 	double pixelsPerMetre = std::numeric_limits<double>::max();
@@ -191,53 +257,12 @@ Image renderTwoViews(const std::vector<DrawMesh>& meshes, const RenderOptions& o
 	glEnable(GL_DEPTH_TEST);
 	glDisable(GL_CULL_FACE);
 	for (int view = 0; view < 2; ++view)
-	{
-		const int x0 = view == 0 ? 0 : W / 2;
-		const Eigen::Vector3d c = 0.5 * (lo[view] + hi[view]);
-		const double depth = 0.5 * (hi[view].z() - lo[view].z()) + 1.0;
-		glViewport(x0, 0, view == 0 ? W / 2 : W - W / 2, H);
-		glMatrixMode(GL_PROJECTION);
-		glLoadIdentity();
-		glOrtho(c.x() - halfW, c.x() + halfW, c.y() - halfH, c.y() + halfH, -c.z() - depth, -c.z() + depth);
-		setupLights();
-		glMatrixMode(GL_MODELVIEW);
-		GLdouble m[16];
-		for (int col = 0; col < 4; ++col)
-			for (int row = 0; row < 4; ++row)
-				m[col * 4 + row] = (row < 3 && col < 3) ? views[view](row, col) : (row == col ? 1.0 : 0.0);
-		glLoadMatrixd(m);
-		for (std::size_t k = 0; k < meshes.size(); ++k)
-			drawMesh(meshes[k], normals[k]);
-	}
+		drawView(view, W, H, views[view], lo[view], hi[view], halfW, halfH, meshes, normals);
 	glFinish();
 	const GLenum err = glGetError();
 	if (err != GL_NO_ERROR)
 		throw std::runtime_error("render: OpenGL error " + std::to_string(int(err)));
-
-	// Box-filter down and flip (GL rows are bottom-up).
-	Image image;
-	image.width = options.width;
-	image.height = options.height;
-	image.rgb.assign(std::size_t(image.width) * image.height * 3, 0);
-	for (int y = 0; y < image.height; ++y)
-		for (int x = 0; x < image.width; ++x)
-			for (int ch = 0; ch < 3; ++ch)
-			{
-				int sum = 0;
-				for (int dy = 0; dy < ss; ++dy)
-					for (int dx = 0; dx < ss; ++dx)
-					{
-						const int sy = H - 1 - (y * ss + dy);
-						sum += buffer[(std::size_t(sy) * W + (x * ss + dx)) * 4 + ch];
-					}
-				image.rgb[(std::size_t(y) * image.width + x) * 3 + ch] = std::uint8_t(sum / (ss * ss));
-			}
-	// A thin grey rule between the two views.
-	const int mid = image.width / 2;
-	for (int y = 0; y < image.height; ++y)
-		for (int ch = 0; ch < 3; ++ch)
-			image.rgb[(std::size_t(y) * image.width + mid) * 3 + ch] = 160;
-	return image;
+	return downsample(buffer, W, H, ss, options);
 }
 
 void writePng(const std::string& path, const Image& image)
