@@ -337,16 +337,12 @@ std::pair<int, int> extremes(const Centred& c, const Eigen::Vector3d& dir)
 	return {hiIdx, loIdx};
 }
 
-/// Builds the KY frame of the centred points: f1 along the first KY difference vector, f2 completing the plane of the
-/// first two, f3 their normal (the third KY direction). Detects the affine rank on the way.
-Frame buildFrame(const Centred& c, double coordinateMagnitude)
+/// The centred point farthest from the mean, and its squared distance (0 for none; the first wins a tie).
+std::pair<int, double> farthestFromMean(const Centred& c)
 {
-	Frame f;
-	f.origin = c.origin;
-	const int n = c.size();
 	int far = 0;
 	double extent2 = 0.0;
-	for (int i = 0; i < n; ++i)
+	for (int i = 0; i < c.size(); ++i)
 	{
 		const double d2 = c(i).squaredNorm();
 		if (d2 > extent2)
@@ -355,24 +351,15 @@ Frame buildFrame(const Centred& c, double coordinateMagnitude)
 			far = i;
 		}
 	}
-	const double extent = std::sqrt(extent2);
-	// Rounding of the input coordinates is ~1e-16 of their magnitude: never call anything thinner than that flat.
-	f.flatness = std::max(kRelativeFlatness * extent, 64.0 * std::numeric_limits<double>::epsilon() * coordinateMagnitude);
-	f.axes.setIdentity();
-	f.lo.setZero();
-	f.hi.setZero();
-	if (!(extent > f.flatness))
-	{
-		f.rank = 0;
-		return f;
-	}
-	// KY direction 1: towards the farthest point from the mean (so the difference vector is non-zero).
-	const auto [a1, b1] = extremes(c, c(far) / extent);
-	const Eigen::Vector3d f1 = (c(a1) - c(b1)).normalized();
-	// KY direction 2: orthogonal to v1, towards the point farthest from the line through the mean along f1.
+	return {far, extent2};
+}
+
+/// The centred point farthest from the line through the mean along the unit vector f1, and its squared distance.
+std::pair<int, double> farthestFromLine(const Centred& c, const Eigen::Vector3d& f1)
+{
 	int farLine = 0;
 	double offLine2 = 0.0;
-	for (int i = 0; i < n; ++i)
+	for (int i = 0; i < c.size(); ++i)
 	{
 		const Eigen::Vector3d p = c(i);
 		const double r2 = (p - f1.dot(p) * f1).squaredNorm();
@@ -382,29 +369,17 @@ Frame buildFrame(const Centred& c, double coordinateMagnitude)
 			farLine = i;
 		}
 	}
-	const double offLine = std::sqrt(offLine2);
-	Eigen::Vector3d f2, f3;
-	int a2 = a1, b2 = b1;
-	if (offLine > f.flatness)
-	{
-		const Eigen::Vector3d p = c(farLine);
-		std::tie(a2, b2) = extremes(c, (p - f1.dot(p) * f1) / offLine);
-		const Eigen::Vector3d v2 = c(a2) - c(b2);
-		f2 = (v2 - f1.dot(v2) * f1).normalized();
-		f3 = f1.cross(f2).normalized(); // KY direction 3: orthogonal to v1 and v2
-	}
-	else
-	{
-		f2 = f1.unitOrthogonal();
-		f3 = f1.cross(f2);
-	}
-	f.axes << f1, f2, f3;
-	// One pass: the extent along every frame axis, and the KY points along f3.
+	return {farLine, offLine2};
+}
+
+/// In one pass over the points: f.lo and f.hi, the extent along every axis of f.axes, and the KY points along its
+/// third axis (a3 at the top, b3 at the bottom; left as they are when every point lies at zero along it).
+void frameExtent(const Centred& c, Frame& f, int& a3, int& b3)
+{
 	const Eigen::Matrix3d Ft = f.axes.transpose();
 	f.lo.setConstant(std::numeric_limits<double>::infinity());
 	f.hi.setConstant(-std::numeric_limits<double>::infinity());
-	int a3 = a1, b3 = b1;
-	for (int i = 0; i < n; ++i)
+	for (int i = 0; i < c.size(); ++i)
 	{
 		const Eigen::Vector3d l = Ft * c(i);
 		for (int k = 0; k < 2; ++k)
@@ -423,6 +398,50 @@ Frame buildFrame(const Centred& c, double coordinateMagnitude)
 			b3 = i;
 		}
 	}
+}
+
+/// Builds the KY frame of the centred points: f1 along the first KY difference vector, f2 completing the plane of the
+/// first two, f3 their normal (the third KY direction). Detects the affine rank on the way.
+Frame buildFrame(const Centred& c, double coordinateMagnitude)
+{
+	Frame f;
+	f.origin = c.origin;
+	const auto [far, extent2] = farthestFromMean(c);
+	const double extent = std::sqrt(extent2);
+	// Rounding of the input coordinates is ~1e-16 of their magnitude: never call anything thinner than that flat.
+	f.flatness = std::max(kRelativeFlatness * extent, 64.0 * std::numeric_limits<double>::epsilon() * coordinateMagnitude);
+	f.axes.setIdentity();
+	f.lo.setZero();
+	f.hi.setZero();
+	if (!(extent > f.flatness))
+	{
+		f.rank = 0;
+		return f;
+	}
+	// KY direction 1: towards the farthest point from the mean (so the difference vector is non-zero).
+	const auto [a1, b1] = extremes(c, c(far) / extent);
+	const Eigen::Vector3d f1 = (c(a1) - c(b1)).normalized();
+	// KY direction 2: orthogonal to v1, towards the point farthest from the line through the mean along f1.
+	const auto [farLine, offLine2] = farthestFromLine(c, f1);
+	const double offLine = std::sqrt(offLine2);
+	Eigen::Vector3d f2, f3;
+	int a2 = a1, b2 = b1;
+	if (offLine > f.flatness)
+	{
+		const Eigen::Vector3d p = c(farLine);
+		std::tie(a2, b2) = extremes(c, (p - f1.dot(p) * f1) / offLine);
+		const Eigen::Vector3d v2 = c(a2) - c(b2);
+		f2 = (v2 - f1.dot(v2) * f1).normalized();
+		f3 = f1.cross(f2).normalized(); // KY direction 3: orthogonal to v1 and v2
+	}
+	else
+	{
+		f2 = f1.unitOrthogonal();
+		f3 = f1.cross(f2);
+	}
+	f.axes << f1, f2, f3;
+	int a3 = a1, b3 = b1;
+	frameExtent(c, f, a3, b3);
 	f.kyPoints = {a1, b1, a2, b2, a3, b3};
 	const Eigen::Vector3d width = f.hi - f.lo;
 	f.rank = width[1] <= f.flatness ? 1 : (width[2] <= f.flatness ? 2 : 3);
@@ -648,17 +667,10 @@ Ellipsoid boxEllipsoid(const Frame& f, double minRadius)
 	return e;
 }
 
-} // namespace
-
-EllipsoidFit minimumVolumeEllipsoid(const Eigen::MatrixX3d& points, const MveeOptions& options)
+/// The input's problems, each a one-line InvalidInputError: no points, bad options, a non-finite coordinate, a
+/// warm-start index out of range or repeated.
+void validateMveeInput(const Eigen::MatrixX3d& points, const MveeOptions& options, const std::vector<int>& warmStart)
 {
-	return minimumVolumeEllipsoid(points, options, std::vector<int>{});
-}
-
-EllipsoidFit minimumVolumeEllipsoid(const Eigen::MatrixX3d& points, const MveeOptions& options,
-                                    const std::vector<int>& warmStart)
-{
-	// ---- Validate ----------------------------------------------------------------------------------------------
 	const int n = int(points.rows());
 	if (n == 0)
 		throw InvalidInputError("minimumVolumeEllipsoid: the point set is empty");
@@ -675,31 +687,29 @@ EllipsoidFit minimumVolumeEllipsoid(const Eigen::MatrixX3d& points, const MveeOp
 			++bad;
 		throw InvalidInputError("minimumVolumeEllipsoid: point " + std::to_string(bad) + " has a non-finite coordinate");
 	}
+	std::vector<char> seen(size_t(n), 0);
+	for (int i : warmStart)
 	{
-		std::vector<char> seen(size_t(n), 0);
-		for (int i : warmStart)
-		{
-			if (i < 0 || i >= n)
-				throw InvalidInputError("minimumVolumeEllipsoid: warm-start index " + std::to_string(i) +
-				                        " is outside [0, " + std::to_string(n) + ")");
-			if (seen[size_t(i)]++)
-				throw InvalidInputError("minimumVolumeEllipsoid: warm-start index " + std::to_string(i) +
-				                        " is repeated");
-		}
+		if (i < 0 || i >= n)
+			throw InvalidInputError("minimumVolumeEllipsoid: warm-start index " + std::to_string(i) +
+			                        " is outside [0, " + std::to_string(n) + ")");
+		if (seen[size_t(i)]++)
+			throw InvalidInputError("minimumVolumeEllipsoid: warm-start index " + std::to_string(i) +
+			                        " is repeated");
 	}
+}
 
-	// ---- Centre on the mean, build the Kumar-Yildirim frame, detect the rank -------------------------------------
-	const Eigen::Vector3d origin = points.colwise().mean().transpose();
-	const Centred c{points, origin};
-	const double magnitude = points.cwiseAbs().maxCoeff();
-	const Frame frame = buildFrame(c, magnitude);
-
-	EllipsoidFit fit;
+/// The ellipsoid by the rank of the frame: a point (minRadius ball), a segment (its half-length and thin axes), or
+/// Khachiyan's iteration in the plane or in space (the frame's box where it fails numerically). Sets fit.ellipsoid
+/// and fit.coreIndices; returns the status before the final rescale.
+FitStatus fitByRank(const Centred& c, const Frame& frame, const MveeOptions& options, const std::vector<int>& warmStart,
+					EllipsoidFit& fit)
+{
 	Ellipsoid& e = fit.ellipsoid;
 	FitStatus status = FitStatus::Ok;
 	if (frame.rank == 0)
 	{
-		e.center = origin;
+		e.center = c.origin;
 		e.radii.setConstant(options.minRadius);
 		status = FitStatus::TooFewPoints;
 		fit.coreIndices = {0};
@@ -707,7 +717,7 @@ EllipsoidFit minimumVolumeEllipsoid(const Eigen::MatrixX3d& points, const MveeOp
 	else if (frame.rank == 1)
 	{
 		// Segment: the MVEE degenerates to the segment itself; its half-length is the long semi-axis.
-		e.center = origin + frame.axes * (0.5 * (frame.lo + frame.hi));
+		e.center = c.origin + frame.axes * (0.5 * (frame.lo + frame.hi));
 		e.rotation = frame.axes;
 		e.radii[0] = 0.5 * (frame.hi[0] - frame.lo[0]);
 		for (int k = 1; k < 3; ++k)
@@ -726,9 +736,14 @@ EllipsoidFit minimumVolumeEllipsoid(const Eigen::MatrixX3d& points, const MveeOp
 	}
 	if (frame.rank < 3 && countDistinct(c, frame.flatness) < 4)
 		status = FitStatus::TooFewPoints;
-	makeProper(e);
+	return status;
+}
 
-	// ---- Exact rescale over all points (world coordinates), then the minimum semi-axis ---------------------------
+/// The exact rescale over all points (world coordinates), then the minimum semi-axis, and a box around the frame if
+/// the result is somehow not a valid ellipsoid. Returns the final status.
+FitStatus encloseExactly(const Eigen::MatrixX3d& points, const Frame& frame, const MveeOptions& options,
+						 FitStatus status, Ellipsoid& e)
+{
 	rescaleToEnclose(points, e, status == FitStatus::NumericalIssue ? 3 : std::max(frame.rank, 1));
 	if ((e.radii.array() < options.minRadius).any())
 	{
@@ -745,7 +760,28 @@ EllipsoidFit minimumVolumeEllipsoid(const Eigen::MatrixX3d& points, const MveeOp
 		e.radii = e.radii.cwiseMax(options.minRadius);
 		status = FitStatus::NumericalIssue;
 	}
-	fit.status = status;
+	return status;
+}
+
+} // namespace
+
+EllipsoidFit minimumVolumeEllipsoid(const Eigen::MatrixX3d& points, const MveeOptions& options)
+{
+	return minimumVolumeEllipsoid(points, options, std::vector<int>{});
+}
+
+EllipsoidFit minimumVolumeEllipsoid(const Eigen::MatrixX3d& points, const MveeOptions& options,
+                                    const std::vector<int>& warmStart)
+{
+	validateMveeInput(points, options, warmStart);
+	// Centre on the mean, build the Kumar-Yildirim frame, detect the rank.
+	const Eigen::Vector3d origin = points.colwise().mean().transpose();
+	const Centred c{points, origin};
+	const Frame frame = buildFrame(c, points.cwiseAbs().maxCoeff());
+	EllipsoidFit fit;
+	const FitStatus status = fitByRank(c, frame, options, warmStart, fit);
+	makeProper(fit.ellipsoid);
+	fit.status = encloseExactly(points, frame, options, status, fit.ellipsoid);
 	return fit;
 }
 
