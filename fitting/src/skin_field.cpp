@@ -1035,28 +1035,10 @@ void forOppositeSignPairs(const UnsetArray<std::int8_t>& sign, int slot, const i
 /// or fingers pressed into each other): there the ray-parity test of fitting/inside_test.h (inside the union of the
 /// closed components, a vote over three axes) decides both points' signs, and a point whose sign it changes has its
 /// exact neighbours decided the same way in turn. Returns the number of signs changed. On `threads` threads.
-int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints& owned)
+/// Per slot and axis, the slot of the brick above it on that axis (-1: not near, or off the grid): where a point on
+/// a brick's upper face finds its +axis neighbour.
+std::vector<int> slotsAbove(const Lattice& L, const OwnedPoints& owned)
 {
-	const double limit = L.h * (1.0 + 1e-5) + 1e-9; // the distances went through float
-	auto signedDistance = [&](long long p) { return owned.sign[std::size_t(p)] * std::sqrt(double(owned.best2[std::size_t(p)])); };
-	auto exactNeighbour = [&](const long long P[3], int axis, int dir) {
-		long long Q[3] = {P[0], P[1], P[2]};
-		Q[axis] += dir;
-		const long long q = owned.index(L, Q[0], Q[1], Q[2]);
-		return q >= 0 && owned.touched(q) ? q : -1;
-	};
-	std::vector<long long> queue;
-	std::vector<char> queued(owned.best2.size(), 0);
-	auto push = [&](long long q) {
-		if (!queued[std::size_t(q)])
-			queued[std::size_t(q)] = 1, queue.push_back(q);
-	};
-	// The unsigned distance is 1-Lipschitz whatever the signs: only a pair of opposite signs can break the bound.
-	// Straight after the exact distances a point has a nonzero sign exactly when it was measured (touched), so the
-	// pairs of opposite nonzero signs are the pairs of measured points with opposite signs.
-	auto suspect = [&](long long p, long long q) { return std::abs(signedDistance(p) - signedDistance(q)) > limit; };
-	// The suspect pairs, found per part of the slots in parallel and queued in slot order. A point on a brick's upper
-	// face finds its +axis neighbour in the slot of the brick above (-1: not near, or off the grid).
 	const int slots = int(owned.slotBrick.size());
 	std::vector<int> above(std::size_t(slots) * 3, -1);
 	for (int slot = 0; slot < slots; ++slot)
@@ -1070,18 +1052,55 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints&
 				above[std::size_t(slot) * 3 + std::size_t(axis)] = owned.brickSlot[std::size_t(L.brickId(next[0], next[1], next[2]))];
 		}
 	}
+	return above;
+}
+
+/// The points of the neighbour pairs whose signed distances differ by more than the voxel (both points of each pair,
+/// in slot order), found per part of the slots on `threads` threads. The unsigned distance is 1-Lipschitz whatever
+/// the signs: only a pair of opposite signs can break the bound. Straight after the exact distances a point has a
+/// nonzero sign exactly when it was measured (touched), so those pairs are the measured points with opposite signs.
+std::vector<long long> suspectPoints(const Lattice& L, const OwnedPoints& owned, int threads)
+{
+	const double limit = L.h * (1.0 + 1e-5) + 1e-9; // the distances went through float
+	auto signedDistance = [&](long long p) { return owned.sign[std::size_t(p)] * std::sqrt(double(owned.best2[std::size_t(p)])); };
+	const int slots = int(owned.slotBrick.size());
+	const std::vector<int> above = slotsAbove(L, owned);
 	std::vector<std::vector<long long>> pairs(std::size_t(std::max(1, std::min(threads, slots))));
 	parallelParts(slots, threads, [&](int part, int first, int end) {
 		std::vector<long long>& found = pairs[std::size_t(part)];
 		for (int slot = first; slot < end; ++slot)
 			forOppositeSignPairs(owned.sign, slot, &above[std::size_t(slot) * 3], [&](long long p, long long q) {
-				if (suspect(p, q))
+				if (std::abs(signedDistance(p) - signedDistance(q)) > limit)
 					found.push_back(p), found.push_back(q);
 			});
 	});
+	std::vector<long long> points;
 	for (const std::vector<long long>& partPairs : pairs)
-		for (long long p : partPairs)
-			push(p);
+		points.insert(points.end(), partPairs.begin(), partPairs.end());
+	return points;
+}
+
+/// Step 3a. A distance field is 1-Lipschitz: two neighbouring exact points whose signed distances differ by more than
+/// the voxel have a wrong sign between them. The pseudo-normal sign fails where the mesh passes through itself (toes
+/// or fingers pressed into each other): there the ray-parity test of fitting/inside_test.h (inside the union of the
+/// closed components, a vote over three axes) decides both points' signs, and a point whose sign it changes has its
+/// exact neighbours decided the same way in turn. Returns the number of signs changed. On `threads` threads.
+int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints& owned)
+{
+	auto exactNeighbour = [&](const long long P[3], int axis, int dir) {
+		long long Q[3] = {P[0], P[1], P[2]};
+		Q[axis] += dir;
+		const long long q = owned.index(L, Q[0], Q[1], Q[2]);
+		return q >= 0 && owned.touched(q) ? q : -1;
+	};
+	std::vector<long long> queue;
+	std::vector<char> queued(owned.best2.size(), 0);
+	auto push = [&](long long q) {
+		if (!queued[std::size_t(q)])
+			queued[std::size_t(q)] = 1, queue.push_back(q);
+	};
+	for (long long p : suspectPoints(L, owned, threads))
+		push(p);
 	if (queue.empty())
 		return 0;
 	// Breadth first, a round at a time: the inside test of a round's points in parallel, then in queue order each
@@ -1119,8 +1138,6 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints&
 	}
 	return changed;
 }
-
-
 
 /// Sign of a far point at X of a row from the exact points of the row (sorted X, their signs): the one that ends its
 /// run on the nearer side, or + where the run reaches the grid's border. `next` is the first exact point after X.
