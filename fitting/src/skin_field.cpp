@@ -1151,19 +1151,79 @@ std::int8_t runSign(const std::vector<long long>& exactX, const std::vector<std:
 	return left <= right ? leftSign : rightSign;
 }
 
-/// signFarPoints for the rows of brick layers y in [firstJ, endJ).
-void signFarPointsInSlab(const Lattice& L, int firstJ, int endJ, OwnedPoints& owned, std::vector<std::int8_t>& brickSign)
+/// One sweep along a lattice row in x over the near bricks of its brick row: the far points since the last exact
+/// point wait in `pending` (as runs of consecutive points in one brick) until the next exact point (or the row's end)
+/// decides them, as runSign would.
+struct FarRowSweep
 {
-	const long long rowLength = L.ownedExtent(0);
-	std::vector<long long> exactX;
-	std::vector<std::int8_t> exactSign;
-	std::vector<int> nearI, nearSlot; // the near bricks of the brick row, and their slots
 	struct FarRun
 	{
 		long long p, X; ///< the first point's owned index and x lattice coordinate
 		int count;
 	};
-	std::vector<FarRun> pending; // the row's far points not decided yet
+	OwnedPoints& owned;
+	std::vector<FarRun> pending;        ///< the row's far points not decided yet
+	std::vector<long long> exactX;      ///< the row's exact points, when kept (keepExact)
+	std::vector<std::int8_t> exactSign; ///< and their signs
+	long long lastX = -1;               ///< the last exact point (-1: none yet, whose run reads +)
+	std::int8_t lastSign = 1;
+
+	explicit FarRowSweep(OwnedPoints& points) : owned(points) {}
+
+	/// runSign's rule, left <= right, is X - lastX <= nextX - X (with lastX = -1 before the first exact point: left =
+	/// X + 1), i.e. X <= (lastX + nextX) / 2 in integers (lastX + nextX >= 0): the pending points up to that split
+	/// take lastSign, the rest nextSign.
+	void decide(long long nextX, std::int8_t nextSign)
+	{
+		const long long split = (lastX + nextX) / 2;
+		for (const FarRun& run : pending)
+		{
+			const int before = int(std::clamp(split - run.X + 1, 0LL, (long long)run.count));
+			std::int8_t* sign = owned.sign.data() + run.p;
+			std::fill(sign, sign + before, lastSign);
+			std::fill(sign + before, sign + run.count, nextSign);
+		}
+		pending.clear();
+	}
+
+	/// Signs the far points of row (b, c) of the near bricks nearI (slots nearSlot) of one brick row; keeps the exact
+	/// points in exactX / exactSign when keepExact.
+	void sweep(int b, int c, const std::vector<int>& nearI, const std::vector<int>& nearSlot, long long rowLength,
+			   bool keepExact)
+	{
+		exactX.clear(), exactSign.clear(), pending.clear();
+		lastX = -1, lastSign = 1;
+		for (std::size_t n = 0; n < nearI.size(); ++n)
+		{
+			const long long row = (long long)nearSlot[n] * kOwned + B * (b + B * c);
+			const long long X0 = (long long)nearI[n] * B;
+			int runStart = 0; // the far points [runStart, a) of this brick's row wait
+			for (int a = 0; a < B; ++a)
+			{
+				if (!owned.touched(row + a))
+					continue;
+				if (runStart < a)
+					pending.push_back({row + runStart, X0 + runStart, a - runStart});
+				runStart = a + 1;
+				const std::int8_t sign = owned.sign[std::size_t(row + a)];
+				decide(X0 + a, sign);
+				lastX = X0 + a, lastSign = sign;
+				if (keepExact)
+					exactX.push_back(X0 + a), exactSign.push_back(sign);
+			}
+			if (runStart < B)
+				pending.push_back({row + runStart, X0 + runStart, B - runStart});
+		}
+		decide(rowLength, 1);
+	}
+};
+
+/// signFarPoints for the rows of brick layers y in [firstJ, endJ).
+void signFarPointsInSlab(const Lattice& L, int firstJ, int endJ, OwnedPoints& owned, std::vector<std::int8_t>& brickSign)
+{
+	const long long rowLength = L.ownedExtent(0);
+	std::vector<int> nearI, nearSlot; // the near bricks of the brick row, and their slots
+	FarRowSweep row(owned);
 	for (int k = 0; k < L.dims[2]; ++k)
 		for (int j = firstJ; j < endJ; ++j)
 		{
@@ -1174,59 +1234,19 @@ void signFarPointsInSlab(const Lattice& L, int firstJ, int endJ, OwnedPoints& ow
 			for (int c = 0; c < B; ++c)
 				for (int b = 0; b < B; ++b)
 				{
-					// One sweep along the row: the far points since the last exact point wait in `pending` (as runs of
-					// consecutive points in one brick) until the next exact point (or the row's end) decides them, as
-					// runSign would.
 					const bool brickRow = b == 0 && c == 0; // the row that also signs the bricks that are not near
-					exactX.clear(), exactSign.clear(), pending.clear();
-					long long lastX = -1; // the last exact point (-1: none yet, whose run reads +)
-					std::int8_t lastSign = 1;
-					// runSign's rule, left <= right, is X - lastX <= nextX - X (with lastX = -1 before the first exact
-					// point: left = X + 1), i.e. X <= (lastX + nextX) / 2 in integers (lastX + nextX >= 0): the
-					// points up to that split take lastSign, the rest nextSign.
-					auto decide = [&](long long nextX, std::int8_t nextSign) {
-						const long long split = (lastX + nextX) / 2;
-						for (const FarRun& run : pending)
-						{
-							const int before = int(std::clamp(split - run.X + 1, 0LL, (long long)run.count));
-							std::int8_t* sign = owned.sign.data() + run.p;
-							std::fill(sign, sign + before, lastSign);
-							std::fill(sign + before, sign + run.count, nextSign);
-						}
-						pending.clear();
-					};
-					for (std::size_t n = 0; n < nearI.size(); ++n)
-					{
-						const long long row = (long long)nearSlot[n] * kOwned + B * (b + B * c);
-						const long long X0 = (long long)nearI[n] * B;
-						int runStart = 0; // the far points [runStart, a) of this brick's row wait
-						for (int a = 0; a < B; ++a)
-						{
-							if (!owned.touched(row + a))
-								continue;
-							if (runStart < a)
-								pending.push_back({row + runStart, X0 + runStart, a - runStart});
-							runStart = a + 1;
-							const std::int8_t sign = owned.sign[std::size_t(row + a)];
-							decide(X0 + a, sign);
-							lastX = X0 + a, lastSign = sign;
-							if (brickRow)
-								exactX.push_back(X0 + a), exactSign.push_back(sign);
-						}
-						if (runStart < B)
-							pending.push_back({row + runStart, X0 + runStart, B - runStart});
-					}
-					decide(rowLength, 1);
+					row.sweep(b, c, nearI, nearSlot, rowLength, brickRow);
 					if (!brickRow)
 						continue;
 					std::size_t next = 0;
 					for (int i = 0; i < L.dims[0]; ++i)
 					{
 						const long long X = (long long)i * B;
-						while (next < exactX.size() && exactX[next] < X)
+						while (next < row.exactX.size() && row.exactX[next] < X)
 							++next;
 						if (owned.brickSlot[std::size_t(L.brickId(i, j, k))] < 0)
-							brickSign[std::size_t(L.brickId(i, j, k))] = runSign(exactX, exactSign, next, X, rowLength);
+							brickSign[std::size_t(L.brickId(i, j, k))] =
+								runSign(row.exactX, row.exactSign, next, X, rowLength);
 					}
 				}
 		}
