@@ -79,12 +79,23 @@ SweepConfig sweepConfig(const bodyfit_bench::Context& ctx)
 	return c;
 }
 
-/// One setting on one body: the fit (timed), its quality, the patch drop on both surfaces (the skin field baked for
-/// the tight one). Returns the table row (pareto column empty); fitMs and airGap for the front; rc = 1 on NaN nodes.
-std::vector<std::string> measureSetting(const BodyAsset& asset, const LoadedBody& body,
-										const bodyfit::FitQualityReference& reference, const Setting& s,
-										const SweepConfig& cfg, double& fitMs, double& airGap, int& rc)
+/// What one setting gave on one body: its table row (pareto column empty), and the fit time and mean air gap the
+/// Pareto front is made of.
+struct SettingResult
 {
+	std::vector<std::string> row;
+	double fitMs = 0.0;
+	double airGap = 0.0;
+	bool nanNodes = false; ///< a drop ended with NaN nodes
+};
+
+/// One setting on one body: the fit (timed), its quality, the patch drop on both surfaces (the skin field baked for
+/// the tight one).
+SettingResult measureSetting(const BodyAsset& asset, const LoadedBody& body,
+							 const bodyfit::FitQualityReference& reference, const Setting& s, const SweepConfig& cfg)
+{
+	SettingResult result;
+	double& fitMs = result.fitMs;
 	const char* tag = "accuracy-time";
 	const int fitRepeats = cfg.fitRepeats, drapeRepeats = cfg.drapeRepeats;
 	const PatchDrop& drop = cfg.drop;
@@ -112,14 +123,13 @@ std::vector<std::string> measureSetting(const BodyAsset& asset, const LoadedBody
 	bd.skinField = std::make_shared<const bodyfit::SkinField>(std::move(field));
 	scene.collider.tightSurface = true;
 	const DrapeResult tight = runDrape(scene, bd, drapeRepeats, drop.steps);
-	if (d.nanNodes > 0 || tight.nanNodes > 0)
-		rc = 1;
+	result.nanNodes = d.nanNodes > 0 || tight.nanNodes > 0;
 	progress(tag, "%s %s mu=%.4f/%.4f budget=%d: %zu ellipsoids, fit %.0f ms, gap %.1f mm, IoU %.3f, "
 				  "%.0f ns/node/step",
 			 asset.name.c_str(), s.kind.c_str(), s.muTorso, s.muLimbs, s.budget, ells.size(), fitMs,
 			 q.airGapMean * 1e3, q.voxelIoU, d.collisionNsPerNodeStep);
-	airGap = q.airGapMean;
-	return {asset.name, s.kind, fmt(s.muTorso, 4), fmt(s.muLimbs, 5), fmtInt(s.budget),
+	result.airGap = q.airGapMean;
+	result.row = {asset.name, s.kind, fmt(s.muTorso, 4), fmt(s.muLimbs, 5), fmtInt(s.budget),
 			fmtInt(long(ells.size())), fmt(fitMs, 1), fmt(fit.meanRadialError() * 1e3, 2),
 			fmt(q.airGapMean * 1e3, 2), fmt(q.airGapP95 * 1e3, 2), fmt(q.airGapMax * 1e3, 1),
 			fmt(q.unionInsideBodyFraction * 100, 2), fmt(q.skinOutsideFraction * 100, 2),
@@ -133,6 +143,7 @@ std::vector<std::string> measureSetting(const BodyAsset& asset, const LoadedBody
 			fmtInt(tight.contactNodes), fmt(tight.meanContactGapM * 1e3, 2),
 			fmt(tight.p95ContactGapM * 1e3, 2), fmtInt(tight.nodesInsideBody),
 			fmtInt(tight.maxNodesInsideBody)};
+	return result;
 }
 
 /// The notes under the table: how each column was measured.
@@ -309,10 +320,12 @@ int runAccuracyTime(const bodyfit_bench::Context& ctx)
 		std::vector<double> cost, error;
 		for (const Setting& s : sweep)
 		{
-			double fitMs = 0.0, airGap = 0.0;
-			rows.push_back(measureSetting(asset, body, reference, s, cfg, fitMs, airGap, rc));
-			cost.push_back(fitMs);
-			error.push_back(airGap);
+			SettingResult r = measureSetting(asset, body, reference, s, cfg);
+			if (r.nanNodes)
+				rc = 1;
+			rows.push_back(std::move(r.row));
+			cost.push_back(r.fitMs);
+			error.push_back(r.airGap);
 		}
 		// Pareto front of fit time vs mean air gap (per body), also listed by increasing fit time for the plot.
 		const std::vector<bool> front = paretoFront(cost, error);
