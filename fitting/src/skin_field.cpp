@@ -1470,6 +1470,18 @@ int sampleDivisions(double length, double voxel)
 	return int(std::clamp(std::ceil(length / voxel), 3.0, 64.0));
 }
 
+/// Length of edge k (corner k to corner k + 1) of face f, the one computation behind both the counting
+/// (faceSampleCount) and the visiting (forEachFaceSample) of a face's samples. The divisions are ceil(length / voxel):
+/// two ways of computing a length (a row expression of V and a copied vector) rounded apart at a whole number of voxels
+/// (the 2 cm edges of a cube at a 2 mm voxel), the face had a sample more or fewer than its slots, and the bake read
+/// cells no sample had written (a crash, depending on what the heap held).
+double faceEdgeLength(const TriMesh& mesh, int f, int k)
+{
+	const Eigen::Vector3d a = mesh.V.row(mesh.F(f, k)).transpose();
+	const Eigen::Vector3d b = mesh.V.row(mesh.F(f, (k + 1) % 3)).transpose();
+	return (b - a).norm();
+}
+
 /// The number of skinSamplePoints that face f adds after the vertices: the inner points of the edges it runs up the
 /// indices along (each edge once), then its own inner points.
 std::size_t faceSampleCount(const TriMesh& mesh, int f, double voxel)
@@ -1478,22 +1490,13 @@ std::size_t faceSampleCount(const TriMesh& mesh, int f, double voxel)
 	double longest = 0.0;
 	for (int k = 0; k < 3; ++k)
 	{
-		const double length = (mesh.V.row(mesh.F(f, (k + 1) % 3)) - mesh.V.row(mesh.F(f, k))).norm();
+		const double length = faceEdgeLength(mesh, f, k);
 		longest = std::max(longest, length);
 		if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3))
 			count += std::size_t(sampleDivisions(length, voxel) - 1);
 	}
 	const std::size_t n = std::size_t(sampleDivisions(longest, voxel));
 	return count + (n - 1) * (n - 2) / 2; // i, j >= 1, i + j <= n - 1
-}
-
-/// The number of points skinSamplePoints gives.
-std::size_t skinSampleCount(const TriMesh& mesh, double voxel)
-{
-	std::size_t count = std::size_t(mesh.vertexCount());
-	for (int f = 0; f < mesh.faceCount(); ++f)
-		count += faceSampleCount(mesh, f, voxel);
-	return count;
 }
 
 /// Where each face's points start in skinSamplePoints (after the vertices), with the total at the end; counted on
@@ -1521,15 +1524,20 @@ void forEachFaceSample(const TriMesh& mesh, int f, double voxel, Visit visit)
 {
 	const Eigen::Vector3d p[3] = {mesh.V.row(mesh.F(f, 0)).transpose(), mesh.V.row(mesh.F(f, 1)).transpose(),
 								  mesh.V.row(mesh.F(f, 2)).transpose()};
+	double longest = 0.0;
 	for (int k = 0; k < 3; ++k)
+	{
+		const double length = faceEdgeLength(mesh, f, k); // (as faceSampleCount counts)
+		longest = std::max(longest, length);
 		if (mesh.F(f, k) < mesh.F(f, (k + 1) % 3)) // each edge once: from the face where it runs up the indices
 		{
 			const Eigen::Vector3d &a = p[k], &b = p[(k + 1) % 3];
-			const int n = sampleDivisions((b - a).norm(), voxel);
+			const int n = sampleDivisions(length, voxel);
 			for (int i = 1; i < n; ++i)
 				visit(Eigen::Vector3d((double(n - i) * a + double(i) * b) / double(n)));
 		}
-	const int n = sampleDivisions(std::max({(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()}), voxel);
+	}
+	const int n = sampleDivisions(longest, voxel);
 	for (int i = 1; i < n; ++i)
 		for (int j = 1; i + j < n; ++j)
 			visit(Eigen::Vector3d((double(i) * p[0] + double(j) * p[1] + double(n - i - j) * p[2]) / double(n)));
@@ -1822,6 +1830,14 @@ void checkMesh(const TriMesh& mesh)
 }
 
 } // namespace
+
+std::size_t skinSampleCount(const TriMesh& mesh, double voxel)
+{
+	std::size_t count = std::size_t(mesh.vertexCount());
+	for (int f = 0; f < mesh.faceCount(); ++f)
+		count += faceSampleCount(mesh, f, voxel);
+	return count;
+}
 
 std::vector<Eigen::Vector3d> skinSamplePoints(const TriMesh& mesh, double voxel)
 {

@@ -226,6 +226,29 @@ TEST_CASE("skin field: a box with sharp edges, a thin cylinder", "[skin_field]")
 	CHECK(a.maxSkinReading <= 0.0005);
 }
 
+TEST_CASE("skin field: the samples counted are the samples made, at edges a whole number of voxels long", "[skin_field]")
+{
+	// The bake sizes its sample arrays by skinSampleCount and fills each face's slots as it makes the face's points:
+	// a face whose edge divisions ceil(length / voxel) came out one apart in the two (the length rounded apart at a
+	// whole number of voxels) left slots unwritten, and the bake crashed or not depending on what the heap held.
+	// Edges of exactly 2, 5 and 20 voxels (cube and grid spacings of 2 cm and 1 cm at 2, 4 and 5 mm voxels), also
+	// turned so that the lengths round every way.
+	const Eigen::Matrix3d turn = (Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitY()) *
+								  Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 0, 1).normalized()))
+									 .toRotationMatrix();
+	for (TriMesh mesh : {bodyfit_test::subdividedCube(0.2, 10), bodyfit_test::flatGrid(40, 0.01)})
+		for (const bool turned : {false, true})
+		{
+			if (turned)
+				mesh.V = (mesh.V * turn.transpose()).eval();
+			for (const double voxel : {0.001, 0.002, 0.004, 0.005})
+			{
+				INFO("voxel " << voxel << (turned ? ", turned" : ""));
+				CHECK(bodyfit::skinSamplePoints(mesh, voxel).size() == bodyfit::skinSampleCount(mesh, voxel));
+			}
+		}
+}
+
 TEST_CASE("skin field: a decimated body against the reference", "[skin_field]")
 {
 	const TriMesh body = bodyfit::loadTriMesh(bodyfit_test::assetPath("male_young.4508v.obj")).mesh;

@@ -105,6 +105,9 @@ constexpr int kSkinBrickSamples = (kSkinBrickEdge + 1) * (kSkinBrickEdge + 1) * 
 /// its length, 0 < i < n; every face's interior at the barycentric points (i, j, n - i - j) / n, i, j, n - i - j >= 1.
 /// n = ceil(length / voxel) in [3, 64], the length being the edge's, or the face's longest edge.
 std::vector<Eigen::Vector3d> skinSamplePoints(const TriMesh& mesh, double voxel);
+/// The number of points skinSamplePoints gives, counted face by face without making them (the bake sizes its sample
+/// arrays by it and fills each face's slots as it makes that face's points: the two must agree exactly).
+std::size_t skinSampleCount(const TriMesh& mesh, double voxel);
 
 struct SkinField
 {
