@@ -189,23 +189,60 @@ std::vector<std::map<int, double>> readWeights(const aiScene* scene, const aiMes
 	return weights;
 }
 
-/// The bind mesh in the bodyfit frame, repaired as loadTriMesh repairs meshes, and the sparse normalised weights of
-/// its vertices (a welded vertex takes the weights of the file vertex it was merged into).
+/// The frame the file draws its skin in: the rest skinning matrix C (bodyfit frame) of the deforming bone nearest the
+/// skeleton's root, when it is not the identity. Skinning runs every vertex through the world transforms of its bones,
+/// and those include every node above the skeleton: a skeleton under an "Armature" node scaled by 0.01 and turned
+/// (Blender's export of a Mixamo character, whose vertices and inverse bind matrices stay in centimetres) draws the
+/// body C v, in metres, while v itself is a 200 m body lying on its back. The bind mesh becomes C v and every
+/// inverse bind matrix inverseBind C^-1 (Rig::restFrame): each skinned pose stays exactly what it was
+/// (S' C v = S v), and the body that is fitted is the body the animation moves. The identity (up to the file's float
+/// rounding, 1e-5) for a rig bound at rest under no such node, the bundled ones among them: nothing changes there.
+Eigen::Affine3d restFrameOfSkin(Rig& rig)
+{
+	const std::vector<Eigen::Affine3d> rest = restPoseBones(rig);
+	std::vector<int> depth(rig.bones.size(), 0);
+	int root = -1;
+	for (std::size_t b = 0; b < rig.bones.size(); ++b) // parents come first (collectSkeleton)
+	{
+		const int parent = rig.bones[b].parent;
+		depth[b] = parent < 0 ? 0 : depth[std::size_t(parent)] + 1;
+		if (rig.bones[b].deforms && (root < 0 || depth[b] < depth[std::size_t(root)]))
+			root = int(b);
+	}
+	if (root < 0)
+		return Eigen::Affine3d::Identity();
+	const Eigen::Affine3d c = rest[std::size_t(root)] * rig.bones[std::size_t(root)].inverseBind;
+	const double offLinear = (c.linear() - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+	if (offLinear <= 1e-5 && c.translation().cwiseAbs().maxCoeff() <= 1e-5)
+		return Eigen::Affine3d::Identity();
+	const Eigen::Affine3d inverse = c.inverse();
+	for (Bone& bone : rig.bones)
+		if (bone.deforms)
+			bone.inverseBind = bone.inverseBind * inverse;
+	return c;
+}
+
+/// The bind mesh in the bodyfit frame (the file's vertices drawn in rig.restFrame), repaired as loadTriMesh repairs
+/// meshes, and the sparse normalised weights of its vertices (a welded vertex takes the weights of the file vertex it
+/// was merged into).
 void buildBindMesh(const aiMesh* mesh, const std::vector<std::map<int, double>>& weights,
 				   const RigLoadOptions& options, const std::string& path, Rig& rig)
 {
 	TriMesh raw;
 	raw.V.resize(mesh->mNumVertices, 3);
+	const Eigen::Affine3d toBind = rig.restFrame * rig.conversion;
 	for (unsigned i = 0; i < mesh->mNumVertices; ++i)
 	{
 		const Eigen::Vector3d p(mesh->mVertices[i].x, mesh->mVertices[i].y, mesh->mVertices[i].z);
-		raw.V.row(i) = (rig.conversion * p).transpose();
+		raw.V.row(i) = (toBind * p).transpose();
 	}
+	// A mirroring frame turns the triangles inside out: their corners are swapped back to face outwards.
+	const bool mirrored = rig.restFrame.linear().determinant() < 0.0;
 	std::vector<Eigen::Vector3i> faces;
 	for (unsigned f = 0; f < mesh->mNumFaces; ++f)
 		if (mesh->mFaces[f].mNumIndices == 3)
-			faces.emplace_back(int(mesh->mFaces[f].mIndices[0]), int(mesh->mFaces[f].mIndices[1]),
-							   int(mesh->mFaces[f].mIndices[2]));
+			faces.emplace_back(int(mesh->mFaces[f].mIndices[0]), int(mesh->mFaces[f].mIndices[mirrored ? 2 : 1]),
+							   int(mesh->mFaces[f].mIndices[mirrored ? 1 : 2]));
 	raw.F.resize(Eigen::Index(faces.size()), 3);
 	for (std::size_t f = 0; f < faces.size(); ++f)
 		raw.F.row(Eigen::Index(f)) = faces[f].transpose();
@@ -334,6 +371,7 @@ Rig loadRig(const std::string& path, const RigLoadOptions& options)
 	std::map<const aiNode*, int> boneOfNode;
 	collectSkeleton(scene, mesh, path, rig, boneOfNode);
 	const std::vector<std::map<int, double>> weights = readWeights(scene, mesh, path, rig, boneOfNode);
+	rig.restFrame = restFrameOfSkin(rig);
 	buildBindMesh(mesh, weights, options, path, rig);
 
 	std::map<std::string, int> boneByName;

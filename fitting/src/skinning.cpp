@@ -77,12 +77,17 @@ std::vector<Eigen::Affine3d> poseBones(const Rig& rig, const AnimationClip& clip
 	return worldFromLocals(rig, local);
 }
 
-std::vector<Eigen::Affine3d> bindPoseBones(const Rig& rig)
+std::vector<Eigen::Affine3d> restPoseBones(const Rig& rig)
 {
 	std::vector<Eigen::Affine3d> local(rig.bones.size());
 	for (std::size_t b = 0; b < rig.bones.size(); ++b)
 		local[b] = rig.bones[b].restLocal;
-	std::vector<Eigen::Affine3d> world = worldFromLocals(rig, local);
+	return worldFromLocals(rig, local);
+}
+
+std::vector<Eigen::Affine3d> bindPoseBones(const Rig& rig)
+{
+	std::vector<Eigen::Affine3d> world = restPoseBones(rig);
 	for (std::size_t b = 0; b < rig.bones.size(); ++b)
 		if (rig.bones[b].deforms)
 			world[b] = rig.bones[b].inverseBind.inverse();

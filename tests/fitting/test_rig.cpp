@@ -178,6 +178,82 @@ TEST_CASE("Skinning the bent cylinder matches the closed form at bind, rest and 
 	}
 }
 
+/// The bent cylinder as Blender exports a Mixamo character: every length in centimetres (vertices, joint offsets,
+/// inverse bind matrices, animated translations) under an "Armature" node that scales by 0.01 (mirrored in x when
+/// `mirror`), turns -90 degrees about x and moves 0.3 m along x. Every pose skins to A (centimetre pose).
+GltfRig bentCylinderUnderArmature(bool mirror)
+{
+	GltfRig rig = bentCylinder();
+	for (Eigen::Vector3f& p : rig.positions)
+		p *= 100.0f;
+	for (bodyfit_test::GltfJoint& j : rig.joints)
+		j.translation *= 100.0f;
+	for (Eigen::Matrix4f& m : rig.inverseBind)
+		m.block<3, 1>(0, 3) *= 100.0f;
+	for (bodyfit_test::GltfClip& clip : rig.clips)
+		for (bodyfit_test::GltfChannel& ch : clip.channels)
+			if (ch.path == "translation")
+				for (float& v : ch.values)
+					v *= 100.0f;
+	rig.armature = true;
+	rig.armatureTranslation = Eigen::Vector3f(0.3f, 0.0f, 0.0f);
+	rig.armatureRotation = Eigen::Quaternionf(Eigen::AngleAxisf(float(-kPi / 2), Eigen::Vector3f::UnitX()));
+	rig.armatureScale = Eigen::Vector3f(mirror ? -0.01f : 0.01f, 0.01f, 0.01f);
+	return rig;
+}
+
+/// Signed volume of a closed mesh: positive when its triangles face outwards.
+double signedVolume(const TriMesh& m)
+{
+	double v = 0.0;
+	for (int f = 0; f < m.faceCount(); ++f)
+	{
+		const Eigen::Vector3d a = m.V.row(m.F(f, 0)), b = m.V.row(m.F(f, 1)), c = m.V.row(m.F(f, 2));
+		v += a.dot(b.cross(c)) / 6.0;
+	}
+	return v;
+}
+
+TEST_CASE("loadRig: a skeleton under a scaled, turned Armature node gives the body the file draws, in metres", "[rig]")
+{
+	const Rig plain = loadRig(bodyfit_test::writeGltfRig(bentCylinder(), "cylinder"));
+	for (const bool mirror : {false, true})
+	{
+		INFO((mirror ? "mirrored" : "not mirrored"));
+		const Rig rig = loadRig(bodyfit_test::writeGltfRig(bentCylinderUnderArmature(mirror), "cylinder_armature"));
+		// A v_cm = T + R S(0.01) v_cm = T + R M v_m (M the mirror or the identity): the metre cylinder, turned, moved.
+		const Eigen::Affine3d toDrawn = Eigen::Translation3d(0.3, 0.0, 0.0) *
+										Eigen::AngleAxisd(-kPi / 2, Eigen::Vector3d::UnitX()) *
+										Eigen::Scaling(mirror ? -1.0 : 1.0, 1.0, 1.0);
+		REQUIRE(rig.bindMesh.vertexCount() == plain.bindMesh.vertexCount());
+		// Float data in centimetres scaled to metres: ~1e-7 relative on 2 m; 1e-5 m is far below any wrong frame.
+		constexpr double tol = 1e-5;
+		double worstBind = 0.0;
+		for (int v = 0; v < rig.bindMesh.vertexCount(); ++v)
+			worstBind = std::max(worstBind, (rig.bindMesh.V.row(v).transpose() -
+											 toDrawn * Eigen::Vector3d(plain.bindMesh.V.row(v).transpose())).norm());
+		CHECK(worstBind < tol); // (it was the 200 m cylinder before loadRig drew it in its rest frame)
+		CHECK(rig.restFrame.linear().determinant() == Approx(mirror ? -1e-6 : 1e-6).epsilon(1e-4));
+		// Facing outwards, mirrored or not: the volume of the 0.2 m x 2 m cylinder (a 12-gon: 0.24 m^3), positive.
+		CHECK(signedVolume(rig.bindMesh) == Approx(signedVolume(plain.bindMesh)).epsilon(1e-4));
+		CHECK(signedVolume(rig.bindMesh) > 0.2);
+		// Every pose is the file's: the bind pose is the bind mesh, the clip is the metre clip drawn by the Armature.
+		Eigen::MatrixX3d skinned, reference;
+		skinVertices(rig, skinningMatrices(rig, bindPoseBones(rig)), skinned);
+		CHECK((skinned - rig.bindMesh.V).rowwise().norm().maxCoeff() < tol);
+		for (double t : {0.0, 0.3, 0.5, 1.0})
+		{
+			INFO("t = " << t);
+			skinVertices(rig, skinningMatrices(rig, poseBones(rig, rig.clips[0], t)), skinned);
+			skinVertices(plain, skinningMatrices(plain, poseBones(plain, plain.clips[0], t)), reference);
+			double worst = 0.0;
+			for (Eigen::Index v = 0; v < skinned.rows(); ++v)
+				worst = std::max(worst, (skinned.row(v).transpose() - toDrawn * Eigen::Vector3d(reference.row(v).transpose())).norm());
+			CHECK(worst < tol);
+		}
+	}
+}
+
 TEST_CASE("loadRig takes more than 4 influences per vertex (JOINTS_1 / WEIGHTS_1)", "[rig]")
 {
 	GltfRig rig = bentCylinder();
@@ -310,6 +386,7 @@ TEST_CASE("The bundled animated bodies load: 13,380 vertices, 4 influences, walk
 		const Rig rig = loadRig(bodyfit_test::assetPath(std::string("animated/") + name + ".animated.glb"));
 		INFO(name);
 		CHECK(rig.bindMesh.vertexCount() == 13380);
+		CHECK(rig.restFrame.matrix() == Eigen::Matrix4d::Identity()); // bound at rest under no Armature node
 		REQUIRE(rig.clips.size() == 2);
 		CHECK(rig.clips[std::size_t(rig.findClip("walk"))].duration == Approx(4.3).margin(1e-6));
 		CHECK(rig.clips[std::size_t(rig.findClip("arms_raise"))].duration == Approx(6.0).margin(1e-6));

@@ -82,7 +82,9 @@ Coverage coverage(const SkinnedBody& body, const std::vector<int>& cluster, doub
 	return c;
 }
 
-std::string cylinderPath()
+/// \param underArmature every length in centimetres under an "Armature" node that scales by 0.01 and turns the
+/// cylinder onto its side (Blender's export of a Mixamo character): the same body and bend, drawn by that node.
+std::string cylinderPath(bool underArmature = false)
 {
 	// The bent cylinder of test_rig.cpp, rebuilt here: 2 m along y, bones at y = 0 and 1, bend clip 0 -> 90 deg.
 	bodyfit_test::GltfRig rig;
@@ -110,7 +112,16 @@ std::string cylinderPath()
 	rig.inverseBind = {Eigen::Matrix4f::Identity(), ib};
 	const Eigen::Quaternionf q(Eigen::AngleAxisf(float(M_PI / 2), Eigen::Vector3f::UnitZ()));
 	rig.clips.push_back({"bend", {{1, "rotation", {0.0f, 1.0f}, {0, 0, 0, 1, q.x(), q.y(), q.z(), q.w()}}}});
-	return bodyfit_test::writeGltfRig(rig, "skinned_cylinder");
+	if (!underArmature)
+		return bodyfit_test::writeGltfRig(rig, "skinned_cylinder");
+	for (Eigen::Vector3f& p : rig.positions)
+		p *= 100.0f;
+	rig.joints[1].translation *= 100.0f;
+	rig.inverseBind[1](1, 3) *= 100.0f;
+	rig.armature = true;
+	rig.armatureRotation = Eigen::Quaternionf(Eigen::AngleAxisf(float(-M_PI / 2), Eigen::Vector3f::UnitX()));
+	rig.armatureScale = Eigen::Vector3f::Constant(0.01f);
+	return bodyfit_test::writeGltfRig(rig, "skinned_cylinder_armature");
 }
 
 /// The bundled body, fitted once in the bind pose as bodyfit-fit does (segmentation + fit) and bound.
@@ -180,7 +191,11 @@ TEST_CASE("transformEllipsoid maps the surface of an ellipsoid onto the surface 
 
 TEST_CASE("The bent cylinder: the union contains the skinned skin at every frame of the bend", "[skinned]")
 {
-	const Rig rig = loadRig(cylinderPath());
+	const bool underArmature = GENERATE(false, true);
+	INFO((underArmature ? "in centimetres under a 0.01 Armature" : "in metres"));
+	const Rig rig = loadRig(cylinderPath(underArmature));
+	// The body fitted is the 2 m cylinder the file draws (on its side under the Armature), not 200 m of centimetres.
+	CHECK(rig.report.height == Approx(underArmature ? 0.4 : 2.0).epsilon(1e-4));
 	const BodyFit fit = fitBody(rig.bindMesh);
 	const SkinBinding binding = bindSkin(rig, fit);
 	SkinnedBody body(rig, fit, binding);

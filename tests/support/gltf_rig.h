@@ -50,6 +50,12 @@ struct GltfRig
 	std::vector<Eigen::Matrix4f> inverseBind; ///< one per joint
 	std::vector<GltfClip> clips;
 	bool hat = false; ///< also a second skinned mesh "hat" (a tetrahedron on joint 0, fewer vertices than the body)
+	/// An "Armature" node above the root joints, as Blender and Mixamo export: not a joint, its transform is part of
+	/// every joint's world transform (and of the mesh node's, which skinning ignores).
+	bool armature = false;
+	Eigen::Vector3f armatureTranslation = Eigen::Vector3f::Zero();
+	Eigen::Quaternionf armatureRotation = Eigen::Quaternionf::Identity();
+	Eigen::Vector3f armatureScale = Eigen::Vector3f::Ones();
 };
 
 /// Writes `rig` as DIR/NAME.gltf (+ NAME.bin) and returns the .gltf path.
@@ -134,6 +140,19 @@ inline std::string writeGltfRig(const GltfRig& rig, const std::string& name)
 	for (std::size_t j = 0; j < rig.joints.size(); ++j)
 		if (!children[j].empty())
 			nodes[j + 1]["children"] = children[j];
+	if (rig.armature)
+	{
+		Json rootJoints = Json::array(), rest = Json::array();
+		for (const Json& r : roots)
+			(r.get<int>() == 0 ? rest : rootJoints).push_back(r);
+		const Eigen::Vector3f& t = rig.armatureTranslation;
+		const Eigen::Quaternionf& q = rig.armatureRotation;
+		const Eigen::Vector3f& sc = rig.armatureScale;
+		nodes.push_back({{"name", "Armature"}, {"translation", {t.x(), t.y(), t.z()}}, {"rotation", {q.x(), q.y(), q.z(), q.w()}},
+						 {"scale", {sc.x(), sc.y(), sc.z()}}, {"children", rootJoints}});
+		rest.push_back(int(nodes.size()) - 1);
+		roots = rest;
+	}
 	if (rig.hat)
 	{
 		nodes.push_back({{"name", "hat"}, {"mesh", 1}, {"skin", 0}});

@@ -59,7 +59,7 @@ struct Rig
 {
 	std::string path;
 	std::string meshName;   ///< the skinned mesh used as the body
-	TriMesh bindMesh;       ///< skin in the bind pose, bodyfit frame, repaired as loadTriMesh repairs meshes
+	TriMesh bindMesh;       ///< skin in the bind pose, bodyfit frame (drawn in restFrame), repaired as loadTriMesh repairs meshes
 	MeshReport report;      ///< what loading found and repaired
 	std::vector<Bone> bones;
 	/// Sparse weights, per vertex of bindMesh: influences weightStart[v] .. weightStart[v+1]-1 of weightBone /
@@ -68,6 +68,10 @@ struct Rig
 	std::vector<int> weightBone;
 	std::vector<double> weight;
 	Eigen::Affine3d conversion = Eigen::Affine3d::Identity(); ///< file frame -> bodyfit frame (scale, up axis)
+	/// Where the file draws its stored vertices (bodyfit frame, after conversion): the rest skinning matrix of the root
+	/// bone when the skeleton hangs under a scaled or turned node, else the identity. bindMesh holds the vertices
+	/// mapped by it and every inverseBind is composed with its inverse, so skinned poses are the file's (rig_io.cpp).
+	Eigen::Affine3d restFrame = Eigen::Affine3d::Identity();
 	std::vector<AnimationClip> clips;
 
 	int boneCount() const { return int(bones.size()); }
@@ -100,6 +104,9 @@ const AnimationClip& requireClip(const Rig& rig, const std::string& name);
 /// [0, duration]); linear interpolation of positions and scales, slerp of rotations, keys held before the first and
 /// after the last. Bones without a channel keep their rest transform.
 std::vector<Eigen::Affine3d> poseBones(const Rig& rig, const AnimationClip& clip, double t);
+
+/// World matrices (bodyfit frame) of every bone in the rest pose: the node transforms of the file, no clip.
+std::vector<Eigen::Affine3d> restPoseBones(const Rig& rig);
 
 /// World matrices of the bind pose: inverse(inverseBind) for deforming bones; the rest pose for the others.
 std::vector<Eigen::Affine3d> bindPoseBones(const Rig& rig);
