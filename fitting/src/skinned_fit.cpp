@@ -381,7 +381,9 @@ void SkinnedBody::updateOne(Bound& b, Ellipsoid& out, const std::vector<Eigen::A
 	if (b.mode == EllipsoidMotion::Rigid)
 	{
 		out = transformEllipsoid(b.bind, skinning[std::size_t(b.dominant)]);
-		out.radii *= kMargin;
+		// (A bone scaled to 0, as rigs hide parts, maps the ellipsoid onto a point or a disc as it maps the skin:
+		// the joint update's smallest radius keeps it a valid ellipsoid around that collapsed skin.)
+		out.radii = (out.radii * kMargin).cwiseMax(1e-6);
 		b.lastScale = 1.0;
 		b.lastGrowth = 0.0;
 		return;

@@ -306,3 +306,37 @@ TEST_CASE("Fit file: the skinning section round-trips, is validated against the 
 	moved.coverPoints += 1;
 	CHECK_THROWS_WITH(checkBinding(rig, back, moved, "fit.json"), Catch::Contains("skinning.points"));
 }
+
+TEST_CASE("A bone scaled to nothing (a clip hiding a part) keeps valid ellipsoids around the collapsed skin", "[skinned][robust]")
+{
+	// Game rigs hide parts by scaling a bone to 0: the skin it carries collapses to a point (or, scaled on one axis,
+	// to a disc), and so does the image of its ellipsoids. They must stay valid ellipsoids (positive radii, no NaN)
+	// that still contain that skin.
+	const Rig rig = loadRig(cylinderPath());
+	const BodyFit fit = fitBody(rig.bindMesh);
+	const SkinBinding binding = bindSkin(rig, fit);
+	SkinnedBody body(rig, fit, binding);
+	int upper = -1;
+	for (int i = 0; i < rig.boneCount(); ++i)
+		if (rig.bones[std::size_t(i)].name == "upper")
+			upper = i;
+	REQUIRE(upper >= 0);
+	for (const Eigen::Vector3d& scale : {Eigen::Vector3d(1e-3, 1e-3, 1e-3), Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 1, 1)})
+	{
+		INFO("scale " << scale.transpose());
+		AnimationClip clip;
+		clip.name = "hide";
+		clip.duration = 1.0;
+		BoneChannel channel;
+		channel.bone = upper;
+		channel.scaleTimes = {0.0, 1.0};
+		channel.scales = {Eigen::Vector3d::Ones(), scale};
+		clip.channels.push_back(channel);
+		body.pose(clip, 1.0);
+		for (const Ellipsoid& e : body.ellipsoids())
+			CHECK(e.isValid());
+		const Coverage c = coverage(body, binding.vertexEllipsoid, binding.coverSpacing / 2);
+		CHECK(c.boundOutside == 0);
+		CHECK(c.samplesOutside == 0);
+	}
+}
