@@ -183,6 +183,8 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_moving(false),
 	  m_hadPose(false),
 	  m_teleported(false),
+	  m_firstSight(false),
+	  m_escapeRaysReady(false),
 	  m_sweeping(false),
 	  m_sweepOnGrid(false),
 	  m_sweepMaxPath(0),
@@ -304,7 +306,8 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 	const bool continuing = m_havePose;
 	advanceBodyPose(continuing);
 	updateWorldCache(continuing);
-	if (m_sweeping || m_teleported)
+	m_escapeRaysReady = m_sweeping || m_teleported;
+	if (m_escapeRaysReady)
 		m_pushOut.prepareEscapeRays(m_current); // the substep runs leavePocket
 	btRigidBody* rigid = btRigidBody::upcast(m_body);
 	m_dynamicBody = m_config.m_applyReactionToBody && rigid && !rigid->isStaticOrKinematicObject() &&
@@ -405,7 +408,8 @@ void btEllipsoidClothColliderCore::beginContactRecord(const btSoftBody* softBody
 	int r = 0;
 	while (r < m_contactRecords.size() && m_contactRecords[r].m_softBody != softBody)
 		++r;
-	if (r == m_contactRecords.size())
+	m_firstSight = r == m_contactRecords.size();
+	if (m_firstSight)
 	{
 		m_contactRecords.expand();
 		m_contactRecords[r].m_softBody = softBody;
@@ -531,6 +535,15 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 		// compiler keeps the query's fields in registers (3.5% fewer instructions in the node loop).
 		const bool moving = m_moving;
 		const btTransform delta = m_delta;
+		// A node outside every ellipsoid is not yet outside the body: the union holds the skin, not the whole interior.
+		// After a jump of the body, and the first time a soft body is collided (a garment placed through the body, a
+		// cloth added mid-run), nodes may start in a void the union encloses; the skin field decides that itself.
+		const bool pockets = (m_teleported || m_firstSight) && !m_skinGeometry.field();
+		if (pockets && !m_escapeRaysReady)
+		{
+			m_pushOut.prepareEscapeRays(m_current);
+			m_escapeRaysReady = true;
+		}
 		btScalar minZeta = stats.m_minZeta;
 		const int numNodes = softBody->m_nodes.size();
 		btSoftBody::Node* nodes = &softBody->m_nodes[0];
@@ -552,7 +565,7 @@ void btEllipsoidClothColliderCore::collide(btSoftBody* softBody, btScalar dt, co
 			btScalar zeta;
 			if (collideNode(node, q, substep, zeta))
 				minZeta = btMin(minZeta, zeta);
-			if (m_teleported && !m_skinGeometry.field())
+			if (pockets)
 				leavePocket(node, substep, minZeta);
 		}
 		stats.m_minZeta = minZeta;

@@ -163,6 +163,8 @@ private:
 	bool m_moving;
 	bool m_hadPose;    ///< some substep has run (a later resetBodyPose() is a teleport)
 	bool m_teleported; ///< this substep follows resetBodyPose(): nodes left in pockets of the union are moved out
+	bool m_firstSight; ///< collide() meets this soft body for the first time: its nodes may start in a pocket too
+	bool m_escapeRaysReady; ///< prepareEscapeRays ran for this substep's cache
 	bool m_sweeping;   ///< the ellipsoids moved by themselves since the previous substep: per-ellipsoid motion
 	btEllipsoidSweep m_sweep; ///< their motion over this substep (valid while m_sweeping)
 	/// The sweep may use the static grid's lists: the body did not move rigidly and the grid, built with a margin, was
