@@ -99,6 +99,9 @@ void printSkinField(const bodyfit::BodyFit& fit, const std::string& outPath, con
 	std::cout << "  skin      field in " << bodyfit::skinFieldPathFor(outPath) << ": " << size << ", " << f.storedBricks()
 			  << " of " << f.brickCount() << " bricks stored, voxel " << mm(f.voxel) << ", clamp " << mm(f.clamp)
 			  << ", max error " << mm(f.maxError) << ", baked in " << ms(fit.timingMs("skin_field")) << "\n";
+	if (f.holeBricks > 0)
+		std::cout << "  warning   the skin has holes (open edges): " << f.holeBricks
+				  << " bricks of the skin field close them where the inside meets the outside through them\n";
 }
 
 void printSummary(const bodyfit::LoadedMesh& loaded, const bodyfit::BodyFit& fit, const std::string& regions,

@@ -1787,6 +1787,44 @@ void storeBricksNearUnion(const Lattice& L, const OwnedPoints& owned, const std:
 	});
 }
 
+/// Marks as stored both bricks of every face-neighbouring pair that would otherwise be left far inside and far outside.
+/// On a closed skin such a pair cannot occur (the skin passes between them, within clamp of both); where the mesh has
+/// a hole (a scan open at the soles or the crown), the signs through the hole come from its rim and a far-inside brick
+/// can meet a far-outside one, which btSkinDistanceField refuses. Stored, the two read from -clamp to +clamp across
+/// their shared face: the hole is closed there, as a seam the field already has where stored bricks meet far ones.
+/// Returns the number of bricks it stored.
+int storeSignConflicts(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign,
+					   std::vector<char>& stored)
+{
+	auto farSign = [&](int brick) { // -1 far inside, +1 far outside, 0 stored (as gatherBricks marks them)
+		if (stored[std::size_t(brick)])
+			return 0;
+		return owned.brickSlot[std::size_t(brick)] < 0 && brickSign[std::size_t(brick)] < 0 ? -1 : 1;
+	};
+	int added = 0;
+	for (int k = 0; k < L.dims[2]; ++k)
+		for (int j = 0; j < L.dims[1]; ++j)
+			for (int i = 0; i < L.dims[0]; ++i)
+			{
+				const int brick = L.brickId(i, j, k);
+				const int above[3] = {i + 1 < L.dims[0] ? L.brickId(i + 1, j, k) : -1,
+									  j + 1 < L.dims[1] ? L.brickId(i, j + 1, k) : -1,
+									  k + 1 < L.dims[2] ? L.brickId(i, j, k + 1) : -1};
+				for (int other : above)
+				{
+					const int a = farSign(brick);
+					if (other < 0 || a == 0)
+						continue;
+					const int b = farSign(other);
+					if (b == 0 || a == b)
+						continue;
+					stored[std::size_t(brick)] = stored[std::size_t(other)] = 1;
+					added += 2;
+				}
+			}
+	return added;
+}
+
 /// Step 5 and the layout: brick index, samples of the stored bricks, and the largest error at their band points.
 void gatherBricks(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign,
 				  const std::vector<char>& stored, int threads, SkinField& field)
@@ -1901,6 +1939,7 @@ SkinField bakeSkinField(const TriMesh& mesh, const std::vector<Ellipsoid>& ellip
 	const BrickNeighbours neighbours(L, owned, brickSign);
 	field.loweredSamples = lowerSkinReadings(L, skin, owned, neighbours, threads, stored);
 	storeBricksNearUnion(L, owned, brickSign, GrownUnion(ellipsoids, options.skinOffset + 2.0 * L.h), threads, stored);
+	field.holeBricks = storeSignConflicts(L, owned, brickSign, stored);
 	gatherBricks(L, owned, brickSign, stored, threads, field);
 	field.maxError =
 		std::max(field.maxError, largestSkinReading(L, skin, owned, neighbours, field.quantum(), field.clamp, threads));

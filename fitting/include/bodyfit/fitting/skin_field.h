@@ -124,6 +124,9 @@ struct SkinField
 	double maxError = 0.0;     ///< max |field - true distance| measured at bake time (metres; step 5 above)
 	int loweredSamples = 0;    ///< skin samples that read > 0 before the conservative pass (step 4)
 	int repairedSigns = 0;     ///< band points whose pseudo-normal sign the inside test corrected (step 3)
+	/// bricks stored only because they would have been left far inside next to far outside: where the mesh has a hole
+	/// (0 on a closed skin; bakeSkinField's storeSignConflicts)
+	int holeBricks = 0;
 
 	double quantum() const { return clamp / 32767.0; }
 	int brickCount() const { return nx * ny * nz; }
