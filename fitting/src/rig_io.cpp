@@ -197,7 +197,9 @@ std::vector<std::map<int, double>> readWeights(const aiScene* scene, const aiMes
 /// inverse bind matrix inverseBind C^-1 (Rig::restFrame): each skinned pose stays exactly what it was
 /// (S' C v = S v), and the body that is fitted is the body the animation moves. The identity (up to the file's float
 /// rounding, 1e-5) for a rig bound at rest under no such node, the bundled ones among them: nothing changes there.
-Eigen::Affine3d restFrameOfSkin(Rig& rig)
+/// \throws InvalidInputError when C is singular or not finite: the rest pose draws no body (a skeleton under a node
+/// scaled to 0).
+Eigen::Affine3d restFrameOfSkin(Rig& rig, const std::string& path)
 {
 	const std::vector<Eigen::Affine3d> rest = restPoseBones(rig);
 	std::vector<int> depth(rig.bones.size(), 0);
@@ -212,6 +214,11 @@ Eigen::Affine3d restFrameOfSkin(Rig& rig)
 	if (root < 0)
 		return Eigen::Affine3d::Identity();
 	const Eigen::Affine3d c = rest[std::size_t(root)] * rig.bones[std::size_t(root)].inverseBind;
+	const double det = c.linear().determinant();
+	if (!c.matrix().allFinite() || !(std::abs(det) > 1e-12))
+		throw InvalidInputError(path + ": the rest pose draws the skin collapsed (bone " +
+								quoted(rig.bones[std::size_t(root)].name) + " skins it through a singular matrix, " +
+								"determinant " + number(det) + ": a node above it scaled to 0?)");
 	const double offLinear = (c.linear() - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
 	if (offLinear <= 1e-5 && c.translation().cwiseAbs().maxCoeff() <= 1e-5)
 		return Eigen::Affine3d::Identity();
@@ -371,7 +378,7 @@ Rig loadRig(const std::string& path, const RigLoadOptions& options)
 	std::map<const aiNode*, int> boneOfNode;
 	collectSkeleton(scene, mesh, path, rig, boneOfNode);
 	const std::vector<std::map<int, double>> weights = readWeights(scene, mesh, path, rig, boneOfNode);
-	rig.restFrame = restFrameOfSkin(rig);
+	rig.restFrame = restFrameOfSkin(rig, path);
 	buildBindMesh(mesh, weights, options, path, rig);
 
 	std::map<std::string, int> boneByName;

@@ -341,6 +341,14 @@ TEST_CASE("Bad rigged input: one-line errors naming what is wrong", "[rig][robus
 		options.meshName = "cloth";
 		CHECK_THAT(loadError(bentCylinder(), "cylinder", options), Catch::Contains("no skinned mesh named 'cloth'"));
 	}
+	SECTION("a skeleton under a node scaled to 0: the rest pose draws no body")
+	{
+		GltfRig rig = bentCylinder();
+		rig.armature = true;
+		rig.armatureScale = Eigen::Vector3f::Zero();
+		CHECK_THAT(loadError(rig, "bad_zero_armature"), Catch::Contains("the rest pose draws the skin collapsed") &&
+															  Catch::Contains("'lower'"));
+	}
 	SECTION("a vertex whose weights are all zero")
 	{
 		GltfRig rig = bentCylinder();
