@@ -281,6 +281,9 @@ TEST_CASE("install: two bodies with a collider each hold a cloth draped over bot
 		// Both bodies held the cloth: each collider corrected nodes.
 		CHECK(ca->getAccumulatedStats().m_nodesCorrected > 100);
 		CHECK(cb->getAccumulatedStats().m_nodesCorrected > 100);
+		// The documented order: uninstall, then remove the bodies.
+		CHECK(w.getSoftBodySolver()->uninstallCollider(ca));
+		CHECK(w.getSoftBodySolver()->uninstallCollider(cb));
 		w.getWorld()->removeSoftBody(cloth);
 		delete cloth;
 		w.getWorld()->removeRigidBody(&a);
