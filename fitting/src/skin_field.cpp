@@ -1787,6 +1787,13 @@ void storeBricksNearUnion(const Lattice& L, const OwnedPoints& owned, const std:
 	});
 }
 
+/// What the brick index says of a brick that is not stored: far inside only for a brick that is not near and whose
+/// row sign is inside; a near brick left unstored has every point outside (storeBricksNearUnion keeps the others).
+int unstoredCode(const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign, int brick)
+{
+	return owned.brickSlot[std::size_t(brick)] < 0 && brickSign[std::size_t(brick)] < 0 ? kFarInside : kFarOutside;
+}
+
 /// Marks as stored both bricks of every face-neighbouring pair that would otherwise be left far inside and far outside.
 /// On a closed skin such a pair cannot occur (the skin passes between them, within clamp of both); where the mesh has
 /// a hole (a scan open at the soles or the crown), the signs through the hole come from its rim and a far-inside brick
@@ -1796,11 +1803,7 @@ void storeBricksNearUnion(const Lattice& L, const OwnedPoints& owned, const std:
 int storeSignConflicts(const Lattice& L, const OwnedPoints& owned, const std::vector<std::int8_t>& brickSign,
 					   std::vector<char>& stored)
 {
-	auto farSign = [&](int brick) { // -1 far inside, +1 far outside, 0 stored (as gatherBricks marks them)
-		if (stored[std::size_t(brick)])
-			return 0;
-		return owned.brickSlot[std::size_t(brick)] < 0 && brickSign[std::size_t(brick)] < 0 ? -1 : 1;
-	};
+	auto farCode = [&](int brick) { return stored[std::size_t(brick)] ? 0 : unstoredCode(owned, brickSign, brick); };
 	int added = 0;
 	for (int k = 0; k < L.dims[2]; ++k)
 		for (int j = 0; j < L.dims[1]; ++j)
@@ -1812,10 +1815,10 @@ int storeSignConflicts(const Lattice& L, const OwnedPoints& owned, const std::ve
 									  k + 1 < L.dims[2] ? L.brickId(i, j, k + 1) : -1};
 				for (int other : above)
 				{
-					const int a = farSign(brick);
+					const int a = farCode(brick);
 					if (other < 0 || a == 0)
 						continue;
-					const int b = farSign(other);
+					const int b = farCode(other);
 					if (b == 0 || a == b)
 						continue;
 					stored[std::size_t(brick)] = stored[std::size_t(other)] = 1;
@@ -1835,8 +1838,7 @@ void gatherBricks(const Lattice& L, const OwnedPoints& owned, const std::vector<
 	{
 		if (!stored[std::size_t(brick)])
 		{
-			const bool far = owned.brickSlot[std::size_t(brick)] < 0;
-			field.brickIndex[std::size_t(brick)] = far && brickSign[std::size_t(brick)] < 0 ? kFarInside : kFarOutside;
+			field.brickIndex[std::size_t(brick)] = unstoredCode(owned, brickSign, brick);
 			continue;
 		}
 		field.brickIndex[std::size_t(brick)] = int(blockBrick.size());

@@ -183,23 +183,9 @@ TEST_CASE("Skinning the bent cylinder matches the closed form at bind, rest and 
 /// `mirror`), turns -90 degrees about x and moves 0.3 m along x. Every pose skins to A (centimetre pose).
 GltfRig bentCylinderUnderArmature(bool mirror)
 {
-	GltfRig rig = bentCylinder();
-	for (Eigen::Vector3f& p : rig.positions)
-		p *= 100.0f;
-	for (bodyfit_test::GltfJoint& j : rig.joints)
-		j.translation *= 100.0f;
-	for (Eigen::Matrix4f& m : rig.inverseBind)
-		m.block<3, 1>(0, 3) *= 100.0f;
-	for (bodyfit_test::GltfClip& clip : rig.clips)
-		for (bodyfit_test::GltfChannel& ch : clip.channels)
-			if (ch.path == "translation")
-				for (float& v : ch.values)
-					v *= 100.0f;
-	rig.armature = true;
-	rig.armatureTranslation = Eigen::Vector3f(0.3f, 0.0f, 0.0f);
-	rig.armatureRotation = Eigen::Quaternionf(Eigen::AngleAxisf(float(-kPi / 2), Eigen::Vector3f::UnitX()));
-	rig.armatureScale = Eigen::Vector3f(mirror ? -0.01f : 0.01f, 0.01f, 0.01f);
-	return rig;
+	return bodyfit_test::inCentimetresUnderArmature(
+		bentCylinder(), Eigen::Quaternionf(Eigen::AngleAxisf(float(-kPi / 2), Eigen::Vector3f::UnitX())),
+		Eigen::Vector3f(mirror ? -0.01f : 0.01f, 0.01f, 0.01f), Eigen::Vector3f(0.3f, 0.0f, 0.0f));
 }
 
 /// Signed volume of a closed mesh: positive when its triangles face outwards.

@@ -114,13 +114,8 @@ std::string cylinderPath(bool underArmature = false)
 	rig.clips.push_back({"bend", {{1, "rotation", {0.0f, 1.0f}, {0, 0, 0, 1, q.x(), q.y(), q.z(), q.w()}}}});
 	if (!underArmature)
 		return bodyfit_test::writeGltfRig(rig, "skinned_cylinder");
-	for (Eigen::Vector3f& p : rig.positions)
-		p *= 100.0f;
-	rig.joints[1].translation *= 100.0f;
-	rig.inverseBind[1](1, 3) *= 100.0f;
-	rig.armature = true;
-	rig.armatureRotation = Eigen::Quaternionf(Eigen::AngleAxisf(float(-M_PI / 2), Eigen::Vector3f::UnitX()));
-	rig.armatureScale = Eigen::Vector3f::Constant(0.01f);
+	rig = bodyfit_test::inCentimetresUnderArmature(
+		rig, Eigen::Quaternionf(Eigen::AngleAxisf(float(-M_PI / 2), Eigen::Vector3f::UnitX())), Eigen::Vector3f::Constant(0.01f));
 	return bodyfit_test::writeGltfRig(rig, "skinned_cylinder_armature");
 }
 

@@ -58,6 +58,30 @@ struct GltfRig
 	Eigen::Vector3f armatureScale = Eigen::Vector3f::Ones();
 };
 
+/// `rig` as Blender exports a Mixamo character: every length in centimetres (vertices, joint offsets, inverse bind
+/// translations, animated translations) under an "Armature" node at 0.01 (`scale` per axis, which may mirror) that
+/// turns by `rotation` and moves by `translation`: every pose draws as that node's image of the metre pose.
+inline GltfRig inCentimetresUnderArmature(GltfRig rig, const Eigen::Quaternionf& rotation, const Eigen::Vector3f& scale,
+										  const Eigen::Vector3f& translation = Eigen::Vector3f::Zero())
+{
+	for (Eigen::Vector3f& p : rig.positions)
+		p *= 100.0f;
+	for (GltfJoint& j : rig.joints)
+		j.translation *= 100.0f;
+	for (Eigen::Matrix4f& m : rig.inverseBind)
+		m.block<3, 1>(0, 3) *= 100.0f;
+	for (GltfClip& clip : rig.clips)
+		for (GltfChannel& ch : clip.channels)
+			if (ch.path == "translation")
+				for (float& v : ch.values)
+					v *= 100.0f;
+	rig.armature = true;
+	rig.armatureTranslation = translation;
+	rig.armatureRotation = rotation;
+	rig.armatureScale = scale;
+	return rig;
+}
+
 /// Writes `rig` as DIR/NAME.gltf (+ NAME.bin) and returns the .gltf path.
 inline std::string writeGltfRig(const GltfRig& rig, const std::string& name)
 {
