@@ -2,8 +2,10 @@
 # Extra CI jobs beyond the README's test command:
 #   1. the float64 Bullet build (-DBODYFIT_BULLET_DOUBLE=ON): the Bullet-facing tests in double precision;
 #   2. an AddressSanitizer + UndefinedBehaviorSanitizer build of the whole test suite (RelWithDebInfo);
-#   3. a short libFuzzer run of every fuzz/ target (tools/fuzz.sh, a fixed number of executions, ~45 s each; clang).
-# Budget on 2 cores: about 35 minutes, mostly compilation.
+#   3. a ThreadSanitizer build of the fitting and scene-runner tests, running those tagged [threads]: fits, bakes and
+#      simulations in threads of their own at the same time, and each library's own threads;
+#   4. a short libFuzzer run of every fuzz/ target (tools/fuzz.sh, a fixed number of executions, ~45 s each; clang).
+# Budget on 2 cores: about 42 minutes, mostly compilation.
 # Each job uses its own build directory. Any failure fails CI.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -20,6 +22,16 @@ cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBODYFIT_SANITIZE=ON
 cmake --build build-asan -j"$JOBS"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
 	LSAN_OPTIONS=suppressions="$PWD/fuzz/lsan.supp":print_suppressions=0 ctest --test-dir build-asan --output-on-failure -j"$JOBS"
+
+echo "== job: ThreadSanitizer: the [threads] tests (fits, bakes and simulations in threads at the same time) =="
+# Only the two suites that hold [threads] tests, built with -fsanitize=thread (about 6 minutes on 2 cores); Bullet and
+# assimp are not instrumented, so what this sees is bodyfit's own memory. tools/tsan.supp says what it drops and why.
+cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBODYFIT_BUILD_DEMOS=OFF \
+	-DCMAKE_CXX_FLAGS=-fsanitize=thread -DCMAKE_EXE_LINKER_FLAGS=-fsanitize=thread
+cmake --build build-tsan -j"$JOBS" --target tests_fitting tests_drape
+for suite in tests_fitting tests_drape; do
+	TSAN_OPTIONS=suppressions="$PWD/tools/tsan.supp":halt_on_error=1 "build-tsan/tests/$suite" "[threads]"
+done
 
 echo "== job: libFuzzer short run (a fixed number of executions per target, about 45 s each; clang, ASan+UBSan) =="
 # Counts, not time: with the fixed seed the same inputs run on every machine, so what passed here passes in CI and

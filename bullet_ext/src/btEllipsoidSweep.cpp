@@ -67,30 +67,37 @@ struct btAxisSymmetry
 };
 
 /// The 24 symmetries, identity first.
+struct btAxisSymmetries
+{
+	btAxisSymmetry m_all[24];
+
+	btAxisSymmetries()
+	{
+		const int perms[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {1, 0, 2}, {0, 2, 1}, {2, 1, 0}};
+		int n = 0;
+		for (int p = 0; p < 6; ++p)
+			for (int signs = 0; signs < 8; ++signs)
+			{
+				btAxisSymmetry s;
+				btScalar det = p < 3 ? btScalar(1) : btScalar(-1); // even / odd permutation
+				for (int k = 0; k < 3; ++k)
+				{
+					s.m_row[k] = perms[p][k];
+					s.m_sign[k] = (signs >> k) & 1 ? btScalar(-1) : btScalar(1);
+					det *= s.m_sign[k];
+				}
+				if (det > btScalar(0))
+					m_all[n++] = s;
+			}
+	}
+};
+
+/// The table, made once on first use. A function-local static is initialised exactly once even when worlds in
+/// several threads build their sweeps at the same time (C++11); the flag it replaced was a data race.
 const btAxisSymmetry* axisSymmetries()
 {
-	static btAxisSymmetry all[24];
-	static bool made = false;
-	if (made)
-		return all;
-	const int perms[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {1, 0, 2}, {0, 2, 1}, {2, 1, 0}};
-	int n = 0;
-	for (int p = 0; p < 6; ++p)
-		for (int signs = 0; signs < 8; ++signs)
-		{
-			btAxisSymmetry s;
-			btScalar det = p < 3 ? btScalar(1) : btScalar(-1); // even / odd permutation
-			for (int k = 0; k < 3; ++k)
-			{
-				s.m_row[k] = perms[p][k];
-				s.m_sign[k] = (signs >> k) & 1 ? btScalar(-1) : btScalar(1);
-				det *= s.m_sign[k];
-			}
-			if (det > btScalar(0))
-				all[n++] = s;
-		}
-	made = true;
-	return all;
+	static const btAxisSymmetries table;
+	return table.m_all;
 }
 
 } // namespace
