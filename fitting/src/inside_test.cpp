@@ -2,9 +2,12 @@
 
 #include "bodyfit/fitting/errors.h"
 #include "bodyfit/fitting/mesh_io.h"
+#include "bodyfit/fitting/parallel.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <string>
 
 namespace bodyfit
@@ -23,7 +26,7 @@ constexpr double kFacesPerCell = 4.0;
 
 } // namespace
 
-MeshInsideTest::MeshInsideTest(const TriMesh& mesh) : V_(mesh.V), F_(mesh.F)
+MeshInsideTest::MeshInsideTest(const TriMesh& mesh, int threads) : V_(mesh.V), F_(mesh.F)
 {
 	if (F_.rows() == 0)
 		throw InvalidInputError("MeshInsideTest: the mesh has no faces");
@@ -42,28 +45,22 @@ MeshInsideTest::MeshInsideTest(const TriMesh& mesh) : V_(mesh.V), F_(mesh.F)
 	boxMax_ = V_.colwise().maxCoeff().transpose();
 	const Eigen::Vector3d extent = (boxMax_ - boxMin_).cwiseMax(1e-12);
 
-	for (int axis = 0; axis < 3; ++axis)
-		buildGrid(axis, extent);
-}
-
-void MeshInsideTest::cellRange(const AxisGrid& g, int f, int& u0, int& u1, int& v0, int& v1) const
-{
-	double minU = 1e300, maxU = -1e300, minV = 1e300, maxV = -1e300;
-	for (int k = 0; k < 3; ++k)
+	Eigen::MatrixX3d faceMin(F_.rows(), 3), faceMax(F_.rows(), 3);
+	for (int f = 0; f < F_.rows(); ++f)
 	{
-		const Eigen::Vector3d p = V_.row(F_(f, k)).transpose();
-		minU = std::min(minU, p[g.u]);
-		maxU = std::max(maxU, p[g.u]);
-		minV = std::min(minV, p[g.v]);
-		maxV = std::max(maxV, p[g.v]);
+		const auto a = V_.row(F_(f, 0)), b = V_.row(F_(f, 1)), c = V_.row(F_(f, 2));
+		faceMin.row(f) = a.cwiseMin(b).cwiseMin(c);
+		faceMax.row(f) = a.cwiseMax(b).cwiseMax(c);
 	}
-	u0 = std::clamp(int((minU - g.originU) * g.invCell), 0, g.nu - 1);
-	u1 = std::clamp(int((maxU - g.originU) * g.invCell), 0, g.nu - 1);
-	v0 = std::clamp(int((minV - g.originV) * g.invCell), 0, g.nv - 1);
-	v1 = std::clamp(int((maxV - g.originV) * g.invCell), 0, g.nv - 1);
+	// Each grid is written by one thread only (threads < 1 is every hardware thread, as the library's options read).
+	parallelRanges(3, resolveThreads(threads), [&](int first, int end) {
+		for (int axis = first; axis < end; ++axis)
+			buildGrid(axis, extent, faceMin, faceMax);
+	});
 }
 
-void MeshInsideTest::buildGrid(int axis, const Eigen::Vector3d& extent)
+void MeshInsideTest::buildGrid(int axis, const Eigen::Vector3d& extent, const Eigen::MatrixX3d& faceMin,
+							   const Eigen::MatrixX3d& faceMax)
 {
 	AxisGrid& g = grids_[axis];
 	g.axis = axis;
@@ -76,29 +73,35 @@ void MeshInsideTest::buildGrid(int axis, const Eigen::Vector3d& extent)
 	g.originV = boxMin_[g.v];
 	g.nu = std::clamp(int(extent[g.u] * g.invCell) + 1, 1, 4096);
 	g.nv = std::clamp(int(extent[g.v] * g.invCell) + 1, 1, 4096);
+	const int faces = int(F_.rows());
+	// The cells [u0, u1] x [v0, v1] that each face's projected box meets, found once for both passes below.
+	std::vector<std::array<int, 4>> range(static_cast<std::size_t>(faces));
+	auto cellOf = [](double x, double origin, double invCell, int n) {
+		return std::clamp(int((x - origin) * invCell), 0, n - 1);
+	};
+	for (int f = 0; f < faces; ++f)
+		range[size_t(f)] = {cellOf(faceMin(f, g.u), g.originU, g.invCell, g.nu),
+							cellOf(faceMax(f, g.u), g.originU, g.invCell, g.nu),
+							cellOf(faceMin(f, g.v), g.originV, g.invCell, g.nv),
+							cellOf(faceMax(f, g.v), g.originV, g.invCell, g.nv)};
 	const int cells = g.nu * g.nv;
 	std::vector<int> count(size_t(cells) + 1, 0);
-	for (int f = 0; f < F_.rows(); ++f)
-	{
-		int u0, u1, v0, v1;
-		cellRange(g, f, u0, u1, v0, v1);
-		for (int v = v0; v <= v1; ++v)
-			for (int u = u0; u <= u1; ++u)
+	for (const std::array<int, 4>& r : range)
+		for (int v = r[2]; v <= r[3]; ++v)
+			for (int u = r[0]; u <= r[1]; ++u)
 				++count[size_t(v * g.nu + u) + 1];
-	}
 	for (int c = 0; c < cells; ++c)
 		count[size_t(c) + 1] += count[size_t(c)];
-	g.cellStart = count;
-	g.cellFaces.assign(size_t(count[size_t(cells)]), 0);
+	g.cellFaces.resize(size_t(count[size_t(cells)]));
 	std::vector<int> cursor(count.begin(), count.end() - 1);
-	for (int f = 0; f < F_.rows(); ++f)
+	for (int f = 0; f < faces; ++f)
 	{
-		int u0, u1, v0, v1;
-		cellRange(g, f, u0, u1, v0, v1);
-		for (int v = v0; v <= v1; ++v)
-			for (int u = u0; u <= u1; ++u)
+		const std::array<int, 4>& r = range[size_t(f)];
+		for (int v = r[2]; v <= r[3]; ++v)
+			for (int u = r[0]; u <= r[1]; ++u)
 				g.cellFaces[size_t(cursor[size_t(v * g.nu + u)]++)] = f;
 	}
+	g.cellStart = std::move(count);
 }
 
 bool MeshInsideTest::parityInside(const Eigen::Vector3d& p, int axis) const
@@ -116,8 +119,10 @@ bool MeshInsideTest::parityInside(const Eigen::Vector3d& p, int axis) const
 	const int cv = std::clamp(int((pv - g.originV) * g.invCell), 0, g.nv - 1);
 	const int cell = cv * g.nu + cu;
 
-	// Crossings of the ray p + s e_axis (s > 0), parity per connected component.
-	std::vector<int> oddComponents; // components with an odd number of crossings so far (small)
+	// Crossings of the ray p + s e_axis (s > 0), parity per connected component: a bit per component below 64 (no
+	// allocation on the common path; a body has a handful), a list of the others with an odd count so far.
+	std::uint64_t oddLow = 0;
+	std::vector<int> oddHigh;
 	for (int j = g.cellStart[size_t(cell)]; j < g.cellStart[size_t(cell) + 1]; ++j)
 	{
 		const int f = g.cellFaces[size_t(j)];
@@ -137,13 +142,18 @@ bool MeshInsideTest::parityInside(const Eigen::Vector3d& p, int axis) const
 		if (hit <= p[axis])
 			continue;
 		const int comp = faceComponent_[size_t(f)];
-		auto it = std::find(oddComponents.begin(), oddComponents.end(), comp);
-		if (it == oddComponents.end())
-			oddComponents.push_back(comp);
+		if (comp < 64)
+		{
+			oddLow ^= std::uint64_t(1) << comp;
+			continue;
+		}
+		auto it = std::find(oddHigh.begin(), oddHigh.end(), comp);
+		if (it == oddHigh.end())
+			oddHigh.push_back(comp);
 		else
-			oddComponents.erase(it);
+			oddHigh.erase(it);
 	}
-	return !oddComponents.empty();
+	return oddLow != 0 || !oddHigh.empty();
 }
 
 bool MeshInsideTest::isInside(const Eigen::Vector3d& p) const

@@ -1106,7 +1106,7 @@ int repairSigns(const TriMesh& mesh, const Lattice& L, int threads, OwnedPoints&
 	// Breadth first, a round at a time: the inside test of a round's points in parallel, then in queue order each
 	// point whose sign it changes queues its exact neighbours for the next round. Every point is decided once, by
 	// the inside test alone, so the signs do not depend on the order (nor on the thread count).
-	const MeshInsideTest inside(mesh);
+	const MeshInsideTest inside(mesh, threads);
 	int changed = 0;
 	std::vector<std::int8_t> decided;
 	long long P[3];

@@ -18,8 +18,10 @@ class MeshInsideTest
 {
 public:
 	/// \param mesh triangle mesh (closed components give exact answers; open ones are handled by the vote)
+	/// \param threads the three axis grids are built on up to this many threads (0 = every hardware thread); the
+	///        test is the same whatever the count
 	/// \throws InvalidInputError if the mesh has no faces, non-finite coordinates or bad indices.
-	explicit MeshInsideTest(const TriMesh& mesh);
+	explicit MeshInsideTest(const TriMesh& mesh, int threads = 1);
 
 	/// True if p is inside (majority of the three axis-ray parity votes).
 	bool isInside(const Eigen::Vector3d& p) const;
@@ -43,10 +45,10 @@ private:
 	};
 
 	/// The grid of the projections along `axis` (square cells, about kFacesPerCell projected triangles per cell on
-	/// average over the box's extent), each cell listing the faces whose projected box meets it.
-	void buildGrid(int axis, const Eigen::Vector3d& extent);
-	/// The cells [u0, u1] x [v0, v1] of grid g that face f's projected box meets.
-	void cellRange(const AxisGrid& g, int f, int& u0, int& u1, int& v0, int& v1) const;
+	/// average over the box's extent), each cell listing the faces whose projected box meets it. faceMin/faceMax:
+	/// every face's box (row f), found once for the three grids.
+	void buildGrid(int axis, const Eigen::Vector3d& extent, const Eigen::MatrixX3d& faceMin,
+				   const Eigen::MatrixX3d& faceMax);
 
 	Eigen::MatrixX3d V_;
 	Eigen::MatrixX3i F_;
