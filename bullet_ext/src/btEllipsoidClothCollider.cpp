@@ -22,6 +22,7 @@ btEarliestEntry (btEllipsoidNarrowPhase.h), response (btEllipsoidClothResponse.c
 #include "LinearMath/btQuickprof.h"
 #include "LinearMath/btTransformUtil.h"
 
+#include <cmath>
 #include <new>
 #include <string.h>
 
@@ -73,6 +74,7 @@ void btEllipsoidClothStats::reset()
 	m_collisionCpuSeconds = 0.0;
 	m_minZeta = SIMD_INFINITY;
 	m_nonFiniteNodes = 0;
+	m_invalidPoseSubsteps = 0;
 	m_minSkinField = SIMD_INFINITY;
 	m_skinFallbacks = 0;
 	m_skinMarchLimits = 0;
@@ -95,6 +97,7 @@ void btEllipsoidClothStats::accumulate(const btEllipsoidClothStats& other)
 	m_collisionCpuSeconds += other.m_collisionCpuSeconds;
 	m_minZeta = btMin(m_minZeta, other.m_minZeta);
 	m_nonFiniteNodes += other.m_nonFiniteNodes;
+	m_invalidPoseSubsteps += other.m_invalidPoseSubsteps;
 	m_minSkinField = btMin(m_minSkinField, other.m_minSkinField);
 	m_skinFallbacks += other.m_skinFallbacks;
 	m_skinMarchLimits += other.m_skinMarchLimits;
@@ -316,6 +319,25 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 						: 0;
 	m_lastStats.m_collisionSeconds += double(clock.getTimeNanoseconds()) * 1e-9;
 	m_lastStats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
+}
+
+bool btEllipsoidClothColliderCore::bodyPoseFinite() const
+{
+	const btTransform& t = m_body->getWorldTransform();
+	for (int r = 0; r < 3; ++r)
+		for (int c = 0; c < 4; ++c) // the basis row's three entries, then the origin's coordinate
+			if (!std::isfinite(double(c < 3 ? t.getBasis()[r][c] : t.getOrigin()[r])))
+				return false;
+	return true;
+}
+
+void btEllipsoidClothColliderCore::skipSubstep()
+{
+	m_lastStats.reset();
+	m_lastStats.m_invalidPoseSubsteps = 1;
+	for (int r = 0; r < m_contactRecords.size(); ++r) // no contact in a skipped substep
+		m_contactRecords[r].m_current = false;
+	endSubstep();
 }
 
 void btEllipsoidClothColliderCore::advanceBodyPose(bool continuing)
@@ -1127,6 +1149,11 @@ void btEllipsoidClothSoftBodySolver::solveConstraints(btScalar solverdt)
 		btEllipsoidClothColliderCore* collider = m_colliders[c];
 		if (!collider->bodyStillPresent())
 			continue;
+		if (!collider->bodyPoseFinite())
+		{
+			collider->skipSubstep();
+			continue;
+		}
 		collider->beginSubstep(solverdt);
 		for (int b = 0; b < m_softBodySet.size(); ++b)
 		{

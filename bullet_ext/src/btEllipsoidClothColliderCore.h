@@ -36,6 +36,12 @@ public:
 	void collide(btSoftBody* softBody, btScalar dt, const btVector3* startPositions);
 	/// Adds the substep's counters to the accumulated ones.
 	void endSubstep();
+	/// False while the body's world transform holds a NaN or an infinity: the solver then calls skipSubstep() instead
+	/// of the three above, so the last finite pose stays the one the next substep moves from (a NaN pose kept as the
+	/// previous pose made the first substep after it write NaN into every node it swept).
+	bool bodyPoseFinite() const;
+	/// A substep without collision, counted in m_invalidPoseSubsteps.
+	void skipSubstep();
 
 	/// False once the body has left the world it was in at install (then the collider is detached: isDetached()).
 	/// Compares pointers only: a body deleted after its removal is never read.

@@ -34,6 +34,9 @@ struct btEllipsoidClothStats
 	double m_collisionCpuSeconds; ///< the same as thread CPU time (robust on a busy machine; 0 where unsupported)
 	btScalar m_minZeta;      ///< smallest zeta over processed nodes after the response (>= 1 when the guarantee holds)
 	int m_nonFiniteNodes;    ///< nodes found with NaN/Inf coordinates (left untouched, not counted elsewhere)
+	int m_invalidPoseSubsteps; ///< substeps skipped because the body's world transform held a NaN or infinity (an
+							   ///< animation gone wrong): the collider keeps the last finite pose and moves on from it
+							   ///< once the pose is finite again, pushing out the nodes that fell in meanwhile
 	// Tight mode (Config::m_surface TIGHT_SKIN with a skin field): m_nodesCorrected counts nodes whose path met the
 	// skin, m_nodesPushedOut nodes that started within it; zeta is not tracked (nodes rest inside the union).
 	btScalar m_minSkinField; ///< smallest field value over nodes the field decided, after the response (>= skin
