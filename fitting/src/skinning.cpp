@@ -1,7 +1,10 @@
 // Posing a rig (key interpolation down the bone hierarchy) and linear blend skinning. See rig.h.
 #include "bodyfit/fitting/rig.h"
 
+#include "bodyfit/fitting/errors.h"
+
 #include <algorithm>
+#include <cmath>
 
 namespace bodyfit
 {
@@ -68,6 +71,9 @@ std::vector<Eigen::Affine3d> worldFromLocals(const Rig& rig, const std::vector<E
 
 std::vector<Eigen::Affine3d> poseBones(const Rig& rig, const AnimationClip& clip, double t)
 {
+	// NaN passes std::clamp and every comparison of the key search, which then read past the keys.
+	if (std::isnan(t))
+		throw InvalidInputError("poseBones: the clip time is NaN (clip '" + clip.name + "')");
 	t = std::clamp(t, 0.0, clip.duration);
 	std::vector<Eigen::Affine3d> local(rig.bones.size());
 	for (std::size_t b = 0; b < rig.bones.size(); ++b)

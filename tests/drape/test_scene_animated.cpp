@@ -18,6 +18,7 @@
 #include <catch2/catch.hpp>
 
 #include <filesystem>
+#include <limits>
 #include <unistd.h>
 
 using namespace bodyfit::drape;
@@ -305,6 +306,15 @@ TEST_CASE("the driver writes the posed ellipsoids into the compound and the skin
 	CHECK((driver.body().vertices() - body.mesh.V).rowwise().norm().maxCoeff() > 0.05);
 	CHECK(driver.stats().updates == 1);
 	driver.update(1.2); // same time: nothing to do
+	CHECK(driver.stats().updates == 1);
+	// A time that is NaN or infinite is refused and the body keeps its pose (before, NaN posed it at some key
+	// without a word, and an infinite time in a looping clip gave a NaN clip time).
+	const int posed = compound->getAnalyticRevision();
+	for (const double t : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(),
+						   -std::numeric_limits<double>::infinity()})
+		CHECK_THROWS_WITH(driver.update(t), Catch::Contains("btSkinnedBodyDriver::update: the simulation time must be finite"));
+	CHECK(driver.time() == 1.2);
+	CHECK(compound->getAnalyticRevision() == posed);
 	CHECK(driver.stats().updates == 1);
 
 	auto small = bodyfit::createEllipsoidCompound({body.ellipsoids.front()});

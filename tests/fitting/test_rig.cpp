@@ -175,6 +175,14 @@ TEST_CASE("Skinning the bent cylinder matches the closed form at bind, rest and 
 			INFO("t = " << t);
 			CHECK(maxDeviation(skinned, rig.bindMesh, tc, 90.0 * tc) < tol);
 		}
+		// Infinite times clamp to the clip's ends; NaN is refused (it passed the clamp and every comparison of the
+		// key search, which then read one past the keys: garbage, or a crash under ASan).
+		skinVertices(rig, skinningMatrices(rig, poseBones(rig, rig.clips[0], std::numeric_limits<double>::infinity())), skinned);
+		CHECK(maxDeviation(skinned, rig.bindMesh, 1.0, 90.0) < tol);
+		skinVertices(rig, skinningMatrices(rig, poseBones(rig, rig.clips[0], -std::numeric_limits<double>::infinity())), skinned);
+		CHECK(maxDeviation(skinned, rig.bindMesh, 0.0, 0.0) < tol);
+		CHECK_THROWS_WITH(poseBones(rig, rig.clips[0], std::numeric_limits<double>::quiet_NaN()),
+						  Catch::Contains("poseBones: the clip time is NaN"));
 	}
 }
 

@@ -143,6 +143,9 @@ void btSkinnedBodyDriver::setMesh(btRefitTriangleMesh* mesh)
 
 void btSkinnedBodyDriver::update(double simSeconds)
 {
+	if (!std::isfinite(simSeconds)) // a NaN time posed the body at an arbitrary key, an infinite one NaN in a loop
+		throw InvalidInputError("btSkinnedBodyDriver::update: the simulation time must be finite (got " +
+								std::to_string(simSeconds) + ")");
 	if (simSeconds == m_time && m_stats.updates > 0)
 		return;
 	m_time = simSeconds;

@@ -102,7 +102,7 @@ const AnimationClip& requireClip(const Rig& rig, const std::string& name);
 
 /// World matrices (bodyfit frame) of every bone of `rig` at time t seconds of `clip` (t clamped to
 /// [0, duration]); linear interpolation of positions and scales, slerp of rotations, keys held before the first and
-/// after the last. Bones without a channel keep their rest transform.
+/// after the last. Bones without a channel keep their rest transform. \throws InvalidInputError for a NaN time.
 std::vector<Eigen::Affine3d> poseBones(const Rig& rig, const AnimationClip& clip, double t);
 
 /// World matrices (bodyfit frame) of every bone in the rest pose: the node transforms of the file, no clip.

@@ -117,6 +117,7 @@ public:
 	SkinnedBody(const Rig& rig, const BodyFit& fit, const SkinBinding& binding, const SkinnedBodyOptions& options = {});
 
 	/// Poses the rig at time t of `clip` and updates (poseBones + skinningMatrices + update).
+	/// \throws InvalidInputError for a NaN time (poseBones; the body keeps its pose).
 	void pose(const AnimationClip& clip, double t);
 	/// Skins the vertices with `skinning` (skinningMatrices) and updates every ellipsoid.
 	void update(const std::vector<Eigen::Affine3d>& skinning);

@@ -123,6 +123,7 @@ public:
 
 	/// Poses the body at simulation time `simSeconds` and writes the shapes. A call with the time of the previous
 	/// update does nothing (the body is already there).
+	/// \throws InvalidInputError for a time that is NaN or infinite (the body keeps its pose).
 	void update(double simSeconds);
 
 	double time() const { return m_time; }          ///< simulation time of the current pose
