@@ -408,7 +408,10 @@ std::vector<int> tracePath(const std::vector<int>& predecessors, int target)
 	std::vector<int> path;
 	if (target < 0 || target >= int(predecessors.size()))
 		return path;
-	for (int v = target; v >= 0 && path.size() <= predecessors.size(); v = predecessors[size_t(v)])
+	// Bounded by the array both ways: a predecessor out of range ends the path, a cycle stops after size + 1 steps
+	// (neither comes out of GeodesicSolver::compute; an array made elsewhere is read, never past its end).
+	for (int v = target; v >= 0 && v < int(predecessors.size()) && path.size() <= predecessors.size();
+		 v = predecessors[size_t(v)])
 		path.push_back(v);
 	std::reverse(path.begin(), path.end());
 	return path;

@@ -174,6 +174,9 @@ TEST_CASE("geodesics: traced paths are edge paths whose length is the distance",
 		CHECK(length >= 0.99 * d[size_t(target)]);
 	}
 	CHECK(tracePath(pred, -1).empty());
+	// Arrays not made by compute: a predecessor past the end ends the path (it was read out of bounds), a cycle is cut.
+	CHECK(tracePath({1, 7}, 0) == std::vector<int>{1, 0});
+	CHECK(tracePath({1, 0}, 0).size() == 3);
 }
 
 TEST_CASE("geodesics: other components stay unreachable", "[fitting][geodesics]")

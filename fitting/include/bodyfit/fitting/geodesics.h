@@ -70,7 +70,8 @@ private:
 
 /// Vertices of the shortest path from the source to `target`, source first, read from a predecessor array filled by
 /// GeodesicSolver::compute. For a target that was not reached (infinite distance) the result is just {target}; check
-/// the distance first. Empty when `target` is out of range.
+/// the distance first. Empty when `target` is out of range. An array not made by compute is read safely: a
+/// predecessor out of range ends the path there, and a cycle ends it after predecessors.size() + 1 vertices.
 std::vector<int> tracePath(const std::vector<int>& predecessors, int target);
 
 /// One-off convenience: distances from `sources` (builds a solver each call).
