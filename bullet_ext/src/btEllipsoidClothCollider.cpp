@@ -182,6 +182,7 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	  m_ownedCompound(ownedCompound),
 	  m_bodyInWorld(false),
 	  m_worldIndex(-1),
+	  m_installedShape(0),
 	  m_compound(compound),
 	  m_moving(false),
 	  m_hadPose(false),
@@ -218,6 +219,7 @@ btEllipsoidClothColliderCore::btEllipsoidClothColliderCore(btSoftRigidDynamicsWo
 	const btCollisionObjectArray& objects = world->getCollisionObjectArray();
 	m_worldIndex = objects.findLinearSearch(body);
 	m_bodyInWorld = m_worldIndex < objects.size();
+	m_installedShape = body->getCollisionShape();
 	m_bodyExtent = largestSemiAxis(*compound);
 }
 
@@ -225,18 +227,33 @@ bool btEllipsoidClothColliderCore::bodyStillPresent()
 {
 	if (m_detached)
 		return false;
-	if (!m_bodyInWorld)
-		return true;
-	const btCollisionObjectArray& objects = m_world->getCollisionObjectArray();
-	if (m_worldIndex >= objects.size() || objects[m_worldIndex] != m_body)
-		m_worldIndex = objects.findLinearSearch(m_body); // the array is compacted on removals
-	if (m_worldIndex < objects.size())
-		return true;
-	// Ownership rule (btEllipsoidClothSoftBodySolver::installCollider): uninstall before removing the body.
-	btAssert(!"btEllipsoidClothCollider: the body was removed from the world while its collider was installed");
+	if (m_bodyInWorld)
+	{
+		const btCollisionObjectArray& objects = m_world->getCollisionObjectArray();
+		if (m_worldIndex >= objects.size() || objects[m_worldIndex] != m_body)
+			m_worldIndex = objects.findLinearSearch(m_body); // the array is compacted on removals
+		if (m_worldIndex >= objects.size())
+		{
+			// Ownership rule (btEllipsoidClothSoftBodySolver::installCollider): uninstall before removing the body.
+			btAssert(!"btEllipsoidClothCollider: the body was removed from the world while its collider was installed");
+			detach();
+			return false;
+		}
+	}
+	if (m_body->getCollisionShape() != m_installedShape)
+	{
+		// The collider's compound is the old shape's, which the caller may have deleted: never read it again.
+		btAssert(!"btEllipsoidClothCollider: the body's collision shape was replaced while its collider was installed");
+		detach();
+		return false;
+	}
+	return true;
+}
+
+void btEllipsoidClothColliderCore::detach()
+{
 	m_detached = true;
 	restoreResponse();
-	return false;
 }
 
 btEllipsoidClothColliderCore::~btEllipsoidClothColliderCore()

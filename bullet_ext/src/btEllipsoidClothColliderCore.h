@@ -43,14 +43,17 @@ public:
 	/// A substep without collision, counted in m_invalidPoseSubsteps.
 	void skipSubstep();
 
-	/// False once the body has left the world it was in at install (then the collider is detached: isDetached()).
-	/// Compares pointers only: a body deleted after its removal is never read.
+	/// False once the body has left the world it was in at install, or its collision shape is no longer the one it
+	/// had at install (then the collider is detached: isDetached()). Compares pointers only: a body deleted after its
+	/// removal, and a shape deleted after the body was given another, are never read.
 	bool bodyStillPresent();
 
 	/// Adds the body to the soft body's m_collisionDisabledObjects (if Config says so).
 	void ensureResponseDisabled(btSoftBody* softBody);
 	/// Removes the body from every soft body's m_collisionDisabledObjects of the world (uninstall).
 	void restoreResponse();
+	/// Stops colliding for good (isDetached()) and gives the soft bodies back Bullet's own response to the body.
+	void detach();
 	/// Set by the solver at installation (getPrecisionWarning).
 	void setPrecisionWarning(const char* warning) { m_precisionWarning = warning; }
 
@@ -158,6 +161,7 @@ private:
 	btEllipsoidCompoundShape* m_ownedCompound;
 	bool m_bodyInWorld;  ///< the body was in the world's collision object array at install
 	int m_worldIndex;    ///< where it was last seen there
+	const btCollisionShape* m_installedShape; ///< the body's collision shape at install (compared, never read)
 	const btEllipsoidCompoundShape* m_compound;
 	btTransform m_previousPose;           ///< body pose used in the previous substep
 	btTransform m_currentPose;            ///< body pose for this substep

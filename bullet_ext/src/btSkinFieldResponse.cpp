@@ -218,7 +218,7 @@ btVector3 btSkinFieldGeometry::slide(const btVector3& from, const btVector3& dis
 
 const btSkinDistanceField* btEllipsoidClothCollider::getActiveSkinField() const
 {
-	return static_cast<const btEllipsoidClothColliderCore*>(this)->activeSkinField();
+	return m_detached ? 0 : static_cast<const btEllipsoidClothColliderCore*>(this)->activeSkinField();
 }
 
 const char* btSkinFieldConfigError(const btEllipsoidClothCollider::Config& config, const btEllipsoidCompoundShape* compound)

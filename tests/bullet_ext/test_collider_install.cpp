@@ -1,7 +1,7 @@
 // Installing the collider the ways users do, right and wrong (issue 12 items 4-8): a soft body added after install
 // never gets Bullet's own response to the body; worlds other than btSoftRigidDynamicsWorld are refused by their
-// virtual type (a C-style cast of a btDeformableMultiBodyDynamicsWorld too); a body removed from the world detaches its
-// collider (and may then be deleted); Config is validated; compounds built the wrong way get the useful message.
+// virtual type (a C-style cast of a btDeformableMultiBodyDynamicsWorld too); a body removed from the world, or given
+// another shape, detaches its collider (the body, or the old shape, may then be deleted); Config is validated; compounds built the wrong way get the useful message.
 #include "bullet_ext/cloth_test_scene.h"
 
 #include "BulletCollision/BroadphaseCollision/btDbvtBroadphase.h"
@@ -136,6 +136,65 @@ TEST_CASE("install: a body removed from the world detaches its collider, which m
 	CHECK(w.getSoftBodySolver()->uninstallCollider(c));
 	w.getWorld()->removeSoftBody(cloth);
 	delete cloth;
+}
+
+TEST_CASE("install: a body given another shape detaches its collider, and the old shape may then be deleted",
+		  "[bullet_ext][collider][install]")
+{
+	// The collider holds the compound of the shape it was installed with. A body handed a new shape (a refit, a level
+	// of detail) whose old one is deleted left it reading freed memory every substep (ASan: heap-use-after-free in
+	// the world cache's update). Now it detaches as for a removed body and Bullet's own response to the body comes
+	// back; to keep bodyfit's response, uninstall, set the shape and install again.
+	btEllipsoidClothWorld w;
+	w.getWorld()->setGravity(btVector3(0, btScalar(-9.81), 0));
+	w.getWorldInfo().m_gravity.setValue(0, btScalar(-9.81), 0);
+	std::unique_ptr<btEllipsoidCompoundShape> shape = ball(), replacement = ball(btScalar(0.15));
+	btRigidBody body(btRigidBody::btRigidBodyConstructionInfo(0, nullptr, shape.get()));
+	w.getWorld()->addRigidBody(&body);
+	btSoftBody* cloth = btSoftBodyHelpers::CreatePatch(w.getWorldInfo(), btVector3(-0.3, 0.25, -0.3),
+													   btVector3(0.3, 0.25, -0.3), btVector3(-0.3, 0.25, 0.3),
+													   btVector3(0.3, 0.25, 0.3), 9, 9, 0, true);
+	cloth->getCollisionShape()->setMargin(btScalar(0.005));
+	w.getWorld()->addSoftBody(cloth);
+	btEllipsoidClothCollider* c = w.installCollider(&body);
+	REQUIRE(c);
+	for (int i = 0; i < 30; ++i)
+		w.getWorld()->stepSimulation(btScalar(1.0 / 60), 1, btScalar(1.0 / 60));
+	CHECK(c->getAccumulatedStats().m_nodesCorrected > 0); // it was colliding
+	CHECK(cloth->m_collisionDisabledObjects.size() == 1);
+
+	body.setCollisionShape(replacement.get());
+	shape.reset(); // the collider must not read it again (ASan: no use after free in the steps below)
+	c->resetStats();
+	for (int i = 0; i < 30; ++i)
+		w.getWorld()->stepSimulation(btScalar(1.0 / 60), 1, btScalar(1.0 / 60));
+	CHECK(c->isDetached());
+	CHECK(c->getBody() == nullptr);
+	CHECK(c->getActiveSkinField() == nullptr);
+	CHECK(c->getAccumulatedStats().m_substeps == 0); // no longer colliding
+	CHECK(cloth->m_collisionDisabledObjects.size() == 0); // Bullet's own response to the body is back
+	// Reinstalled on the new shape, bodyfit's response holds a new cloth on it.
+	CHECK(w.getSoftBodySolver()->uninstallCollider(c));
+	w.getWorld()->removeSoftBody(cloth);
+	delete cloth;
+	cloth = btSoftBodyHelpers::CreatePatch(w.getWorldInfo(), btVector3(-0.3, 0.2, -0.3), btVector3(0.3, 0.2, -0.3),
+										   btVector3(-0.3, 0.2, 0.3), btVector3(0.3, 0.2, 0.3), 9, 9, 0, true);
+	cloth->getCollisionShape()->setMargin(btScalar(0.005));
+	w.getWorld()->addSoftBody(cloth);
+	btEllipsoidClothCollider* again = w.installCollider(&body);
+	REQUIRE(again);
+	for (int i = 0; i < 20; ++i)
+		w.getWorld()->stepSimulation(btScalar(1.0 / 60), 1, btScalar(1.0 / 60));
+	CHECK_FALSE(again->isDetached());
+	CHECK(again->getAccumulatedStats().m_nodesCorrected > 0);
+	int inside = 0; // any depth at all into the 0.15 m ball (the collider rests nodes 2 mm off it)
+	for (int i = 0; i < cloth->m_nodes.size(); ++i)
+		inside += double(cloth->m_nodes[i].m_x.length()) < 0.15 ? 1 : 0;
+	CHECK(inside == 0);
+	CHECK(w.getSoftBodySolver()->uninstallCollider(again));
+	w.getWorld()->removeSoftBody(cloth);
+	delete cloth;
+	w.getWorld()->removeRigidBody(&body);
 }
 #endif
 

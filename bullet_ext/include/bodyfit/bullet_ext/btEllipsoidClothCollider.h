@@ -188,7 +188,7 @@ public:
 	const char* getConfigWarning() const { return m_configWarning; }
 
 	/// The skin field the collider decides contact on: the compound's (btEllipsoidCompoundShape::getSkinField) when
-	/// Config::m_surface is TIGHT_SKIN, else 0 (the ellipsoid response). Read again every substep.
+	/// Config::m_surface is TIGHT_SKIN, else 0 (the ellipsoid response; also once detached). Read again every substep.
 	const btSkinDistanceField* getActiveSkinField() const;
 	/// How far below the skin offset a node decided by `field` may end (the guarantee's tolerance): the field's seam,
 	/// four quanta and the rounding of btScalar coordinates over the grid.
@@ -198,8 +198,11 @@ public:
 	/// empty until the first such substep.
 	const btAlignedObjectArray<int>& getBoneFieldFallbacks() const;
 
-	/// True once the body was found removed from the world it was in at install: the collider then stops colliding
-	/// and never reads the body again (it may be deleted; uninstallCollider still removes the collider).
+	/// True once the body was found removed from the world it was in at install, or given another collision shape
+	/// than the one it had at install: the collider then stops colliding, gives the soft bodies back Bullet's own
+	/// response to the body, and never reads the body (removed: it may be deleted) or the old shape (replaced: it may
+	/// be deleted) again; uninstallCollider still removes the collider. To change a body's shape, uninstall, set the
+	/// shape and install again.
 	bool isDetached() const { return m_detached; }
 
 	/// Counters of the most recent substep.
@@ -234,7 +237,7 @@ protected:
 	btEllipsoidClothStats m_lastStats;
 	btEllipsoidClothStats m_accumulatedStats;
 	bool m_havePose; ///< false: the next substep takes the body's pose as it is (no motion)
-	bool m_detached; ///< the body left the world (see isDetached())
+	bool m_detached; ///< the body left the world or changed its shape (see isDetached())
 	const char* m_configWarning;
 	const char* m_precisionWarning; ///< see getPrecisionWarning
 	btScalar m_bodyExtent; ///< largest semi-axis of the body's ellipsoids (for validateConfig)
