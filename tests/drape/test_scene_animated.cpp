@@ -329,6 +329,34 @@ TEST_CASE("the driver writes the posed ellipsoids into the compound and the skin
 					  Catch::Contains("outside clip 'walk'"));
 }
 
+TEST_CASE("btRefitTriangleMesh refuses non-finite input and keeps its vertices", "[animation][driver]")
+{
+	// A NaN vertex reached the tree's quantisation (a float to integer conversion out of range) without a word.
+	bodyfit::TriMesh tetra;
+	tetra.V.resize(4, 3);
+	tetra.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+	tetra.F.resize(4, 3);
+	tetra.F << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;
+	const double nan = std::numeric_limits<double>::quiet_NaN();
+	bodyfit::TriMesh bad = tetra;
+	bad.V(2, 1) = nan;
+	CHECK_THROWS_WITH(bodyfit::btRefitTriangleMesh(bad, 0.0), Catch::Contains("NaN or infinite"));
+	CHECK_THROWS_WITH(bodyfit::btRefitTriangleMesh(tetra, nan), Catch::Contains("margin must be a finite number >= 0"));
+	CHECK_THROWS_WITH(bodyfit::btRefitTriangleMesh(tetra, -0.01), Catch::Contains("margin must be a finite number >= 0"));
+	bodyfit::btRefitTriangleMesh mesh(tetra, 0.0);
+	Eigen::MatrixX3d moved = tetra.V.array() + 1.0;
+	mesh.setVertices(moved);
+	moved(3, 0) = std::numeric_limits<double>::infinity();
+	CHECK_THROWS_WITH(mesh.setVertices(moved), Catch::Contains("setVertices: vertex 3 has a NaN or infinite coordinate"));
+	btVector3 lo, hi; // still the moved tetrahedron [1, 2]^3 (the shape's AABB adds Bullet's quantisation padding)
+	mesh.shape()->getAabb(btTransform::getIdentity(), lo, hi);
+	for (int k = 0; k < 3; ++k)
+	{
+		CHECK(double(lo[k]) == Approx(1.0).margin(2e-3));
+		CHECK(double(hi[k]) == Approx(2.0).margin(2e-3));
+	}
+}
+
 TEST_CASE("the metrics measure against the skinned mesh of the instant", "[animation][scene]")
 {
 	Scene scene = loadScene(kWalkSkirt);

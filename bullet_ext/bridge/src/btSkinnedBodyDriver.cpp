@@ -39,6 +39,11 @@ btRefitTriangleMesh::btRefitTriangleMesh(const TriMesh& mesh, double margin)
 	if (mesh.F.minCoeff() < 0 || mesh.F.maxCoeff() >= mesh.V.rows())
 		throw InvalidInputError("btRefitTriangleMesh: a face index is outside the " + std::to_string(mesh.V.rows()) +
 								" vertices");
+	if (!mesh.V.allFinite())
+		throw InvalidInputError("btRefitTriangleMesh: a vertex coordinate is NaN or infinite");
+	if (!(std::isfinite(margin) && margin >= 0.0))
+		throw InvalidInputError("btRefitTriangleMesh: the margin must be a finite number >= 0 (got " +
+								std::to_string(margin) + ")");
 	m_vertices.resize(std::size_t(mesh.V.rows()) * 3);
 	for (int i = 0; i < mesh.V.rows(); ++i)
 		for (int k = 0; k < 3; ++k)
@@ -61,6 +66,12 @@ void btRefitTriangleMesh::setVertices(const Eigen::MatrixX3d& vertices)
 	if (std::size_t(vertices.rows()) * 3 != m_vertices.size())
 		throw InvalidInputError("btRefitTriangleMesh::setVertices: " + std::to_string(vertices.rows()) +
 								" vertices given, the mesh has " + std::to_string(m_vertices.size() / 3));
+	// A NaN would reach the tree's quantisation (a float to integer conversion out of range): refused before any
+	// vertex is replaced, so the mesh keeps its last pose.
+	for (int i = 0; i < vertices.rows(); ++i)
+		if (!vertices.row(i).allFinite())
+			throw InvalidInputError("btRefitTriangleMesh::setVertices: vertex " + std::to_string(i) +
+									" has a NaN or infinite coordinate");
 	btVector3 lo(BT_LARGE_FLOAT, BT_LARGE_FLOAT, BT_LARGE_FLOAT), hi = -lo;
 	for (int i = 0; i < vertices.rows(); ++i)
 	{

@@ -53,7 +53,8 @@ struct AnimationTiming
 class btRefitTriangleMesh
 {
 public:
-	/// \throws InvalidInputError for a mesh without faces or with a face index outside the vertices.
+	/// \throws InvalidInputError for a mesh without faces, with a face index outside the vertices or a non-finite
+	///         coordinate, or a margin that is negative or not finite.
 	btRefitTriangleMesh(const TriMesh& mesh, double margin);
 	~btRefitTriangleMesh();
 	btRefitTriangleMesh(const btRefitTriangleMesh&) = delete;
@@ -65,7 +66,8 @@ public:
 
 	/// Replaces every vertex (rows = the mesh's vertices, same order) and refits the BVH over the new bounds
 	/// (btBvhTriangleMeshShape::refitTree, which also recomputes the shape's local AABB).
-	/// \throws InvalidInputError when the row count differs from the mesh's.
+	/// \throws InvalidInputError when the row count differs from the mesh's, or a coordinate is NaN or infinite (the
+	///         mesh then keeps its vertices).
 	void setVertices(const Eigen::MatrixX3d& vertices);
 
 private:
