@@ -22,7 +22,6 @@ btEarliestEntry (btEllipsoidNarrowPhase.h), response (btEllipsoidClothResponse.c
 #include "LinearMath/btQuickprof.h"
 #include "LinearMath/btTransformUtil.h"
 
-#include <cmath>
 #include <new>
 #include <string.h>
 
@@ -316,10 +315,8 @@ btTransform btEllipsoidClothColliderCore::interpolatedKinematicPose()
 
 void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 {
-	m_lastStats.reset();
+	startSubstepCounters();
 	m_lastStats.m_substeps = 1;
-	for (int r = 0; r < m_contactRecords.size(); ++r)
-		m_contactRecords[r].m_current = false;
 	btClock clock;
 	const double cpu0 = btThreadCpuSeconds();
 	m_substepDt = dt;
@@ -338,22 +335,24 @@ void btEllipsoidClothColliderCore::beginSubstep(btScalar dt)
 	m_lastStats.m_collisionCpuSeconds += btThreadCpuSeconds() - cpu0;
 }
 
+void btEllipsoidClothColliderCore::startSubstepCounters()
+{
+	m_lastStats.reset();
+	for (int r = 0; r < m_contactRecords.size(); ++r) // a record not touched in this substep is dropped at its end
+		m_contactRecords[r].m_current = false;
+}
+
 bool btEllipsoidClothColliderCore::bodyPoseFinite() const
 {
 	const btTransform& t = m_body->getWorldTransform();
-	for (int r = 0; r < 3; ++r)
-		for (int c = 0; c < 4; ++c) // the basis row's three entries, then the origin's coordinate
-			if (!std::isfinite(double(c < 3 ? t.getBasis()[r][c] : t.getOrigin()[r])))
-				return false;
-	return true;
+	const btMatrix3x3& b = t.getBasis();
+	return isFinite(t.getOrigin(), b[0]) && isFinite(b[1], b[2]);
 }
 
 void btEllipsoidClothColliderCore::skipSubstep()
 {
-	m_lastStats.reset();
+	startSubstepCounters();
 	m_lastStats.m_invalidPoseSubsteps = 1;
-	for (int r = 0; r < m_contactRecords.size(); ++r) // no contact in a skipped substep
-		m_contactRecords[r].m_current = false;
 	endSubstep();
 }
 

@@ -42,6 +42,8 @@ public:
 	bool bodyPoseFinite() const;
 	/// A substep without collision, counted in m_invalidPoseSubsteps.
 	void skipSubstep();
+	/// The start of every substep, run or skipped: the last substep's counters cleared, no contact record current.
+	void startSubstepCounters();
 
 	/// False once the body has left the world it was in at install, or its collision shape is no longer the one it
 	/// had at install (then the collider is detached: isDetached()). Compares pointers only: a body deleted after its

@@ -68,10 +68,11 @@ void btRefitTriangleMesh::setVertices(const Eigen::MatrixX3d& vertices)
 								" vertices given, the mesh has " + std::to_string(m_vertices.size() / 3));
 	// A NaN would reach the tree's quantisation (a float to integer conversion out of range): refused before any
 	// vertex is replaced, so the mesh keeps its last pose.
-	for (int i = 0; i < vertices.rows(); ++i)
-		if (!vertices.row(i).allFinite())
-			throw InvalidInputError("btRefitTriangleMesh::setVertices: vertex " + std::to_string(i) +
-									" has a NaN or infinite coordinate");
+	if (!vertices.allFinite()) // one vectorised pass per pose; the offending row is looked up only to name it
+		for (int i = 0; i < vertices.rows(); ++i)
+			if (!vertices.row(i).allFinite())
+				throw InvalidInputError("btRefitTriangleMesh::setVertices: vertex " + std::to_string(i) +
+										" has a NaN or infinite coordinate");
 	btVector3 lo(BT_LARGE_FLOAT, BT_LARGE_FLOAT, BT_LARGE_FLOAT), hi = -lo;
 	for (int i = 0; i < vertices.rows(); ++i)
 	{
